@@ -1,0 +1,94 @@
+"""The ``stand`` command line (CONTRACT §2).
+
+Each command lives in its own module under ``stand.cli`` and is imported only when it
+runs (the table below, as python-can's interface table). A command module defines::
+
+    HELP: str                                   # set in COMMANDS below
+    def add_arguments(parser) -> None
+    def run(args) -> dict                       # the JSON result
+    def summarize(result: dict) -> str          # the human summary
+
+With ``--json`` only the JSON object goes to stdout. Exit codes: 0 success, 2 bad input
+(:class:`~stand.errors.InputError`, :class:`~stand.errors.NotFoundError`, argparse),
+1 any other failure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import logging
+import sys
+from collections.abc import Sequence
+
+from stand.errors import InputError, NotFoundError, StandError
+from stand.jsonable import to_jsonable
+
+#: Command name to (module, one-line help).
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("stand.cli.simulate", "simulate a profile and write a run file"),
+    "identify": ("stand.cli.identify", "Q-matrix identification of a single-motor run (seed 000)"),
+    "torque-constant": ("stand.cli.torque_constant", "torque constant from no-load and loaded runs"),
+    "efficiency": ("stand.cli.efficiency", "reducer efficiency from a two-motor run (seed 000 eq. 18)"),
+    "step-identify": ("stand.cli.step_identify", "R, L, K, J, Kf from voltage steps (seed 001)"),
+    "diagnose": ("stand.cli.diagnose", "diagnose the sim-to-real gap on a holdout run"),
+    "import": ("stand.cli.importer", "import a MAT or CSV file into a run file with column mapping"),
+    "run": ("stand.cli.run", "run an experiment profile over the CAN bus"),
+    "serve": ("stand.cli.serve", "start the HTTP service"),
+    "demo": ("stand.cli.demo", "run the whole simulated stand on the virtual bus"),
+    "bench": ("stand.cli.bench", "benchmarks that print figures"),
+}
+
+log = logging.getLogger("stand")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="stand", description="Test-stand controller for motors and gear reducers.",
+        epilog="commands: " + "; ".join(f"{n}: {h}" for n, (_, h) in COMMANDS.items()),
+    )
+    parser.add_argument("command", choices=list(COMMANDS), help="what to do")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``stand`` console script; returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(message)s")
+    top = _parser()
+    if not argv or argv[0] in ("-h", "--help"):
+        top.print_help(sys.stderr if not argv else sys.stdout)
+        return 0 if argv else 2
+    name = argv[0]
+    if name not in COMMANDS:
+        top.parse_args(argv[:1])  # prints the usage and exits 2
+    module_name, help_text = COMMANDS[name]
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name != module_name:
+            raise
+        print(f"stand {name}: not available in this build", file=sys.stderr)
+        return 1
+    parser = argparse.ArgumentParser(prog=f"stand {name}", description=help_text)
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    module.add_arguments(parser)
+    args = parser.parse_args(argv[1:])
+    try:
+        result = module.run(args)
+    except (InputError, NotFoundError) as exc:
+        print(f"stand {name}: {exc}", file=sys.stderr)
+        return 2
+    except StandError as exc:
+        print(f"stand {name}: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"stand {name}: interrupted", file=sys.stderr)
+        return 1
+    if args.json:
+        json.dump(to_jsonable(result), sys.stdout, allow_nan=False)
+        sys.stdout.write("\n")
+    else:
+        print(module.summarize(result))
+    return 0

@@ -1,0 +1,42 @@
+"""The one settings object (environment prefix ``STAND_``); nothing else reads os.environ."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, SecretStr
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    """Service and bus settings.
+
+    Every field can be set from the environment as ``STAND_<FIELD>`` (upper case), e.g.
+    ``STAND_API_KEY``, ``STAND_BUS_INTERFACE=socketcan``, ``STAND_BUS_CHANNEL=vcan0``.
+    """
+
+    model_config = SettingsConfigDict(env_prefix="STAND_", extra="ignore")
+
+    api_key: SecretStr | None = Field(None, description="Bearer key for mutating routes; no default")
+    data_dir: Path = Field(Path("stand-data"), description="run files, traces, plots")
+    db_path: Path | None = Field(None, description="SQLite file (default: data_dir/stand.sqlite3)")
+    host: str = "127.0.0.1"
+    port: int = Field(8000, ge=0, le=65535)
+    upload_limit_bytes: int = Field(64 * 1024 * 1024, gt=0)
+    bus_interface: str = Field("virtual", description="python-can interface name")
+    bus_channel: str = Field("motorstand", description="python-can channel")
+    bus_bitrate: int = Field(1_000_000, gt=0)
+    time_mode: Literal["lockstep", "realtime"] = "lockstep"
+
+    @property
+    def database(self) -> Path:
+        """Path of the SQLite database file."""
+        return self.db_path or self.data_dir / "stand.sqlite3"
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process-wide settings, read once from the environment."""
+    return Settings()
