@@ -108,7 +108,8 @@ def check_columns(columns: Mapping[str, np.ndarray], kind: RunKind, source: str)
                 "finite; every cell must be a finite number"
             )
     if n < MIN_SAMPLES:
-        raise RunFileError(f"{source}: {n} samples; a run needs at least {MIN_SAMPLES}")
+        raise RunFileError(f"{source}: rows 2-{n + 1}, column time_s: {n} samples; a run "
+                           f"needs at least {MIN_SAMPLES}")
     _check_time(arrays["time_s"], source)
     return Run(arrays, source)
 
@@ -151,7 +152,7 @@ def parse_run(text: str, kind: RunKind, source: str = "<upload>") -> Run:
     missing = [name for name in required if name not in index]
     if missing:
         raise RunFileError(
-            f"{source}: missing column(s) {', '.join(missing)} in header "
+            f"{source}: row 1 (header): missing column(s) {', '.join(missing)} in header "
             f"{','.join(header)!r}; a {kind} run needs {', '.join(required)}"
         )
     values: dict[str, list[float]] = {name: [] for name in index}

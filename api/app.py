@@ -1,0 +1,73 @@
+"""The FastAPI application: storage and the stand are opened in the lifespan.
+
+``create_app()`` builds the app from :func:`stand.settings.get_settings`; tests pass their
+own settings, storage or stand runner.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator, Callable
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+
+from api import errors
+from api.routers import analysis, health, profiles, results, runs, stand
+from stand.jobs import ControllerRunner, JobManager, StandRunner
+from stand.settings import Settings, get_settings
+from stand.storage import Storage
+
+log = logging.getLogger("stand.api")
+
+DESCRIPTION = """Test-stand controller for DC motors and gear reducers (CANopen CiA 402).
+
+Runs are jobs on the stand (POST /runs → 202); analyses take stored run ids (JSON) or
+uploaded CSV run files (multipart/form-data). Mutating routes need
+`Authorization: Bearer <STAND_API_KEY>` when a key is configured; without one the service
+listens on loopback only. Result fields are those of the `stand` command line's JSON.
+"""
+
+
+def default_runner(settings: Settings) -> StandRunner:
+    """The stand controller on the configured bus; on ``virtual`` the drives of each
+    experiment's motor or stand are simulated in this process."""
+    from bus.adapters import BusConfig
+    from bus.stand_bus import StandBus
+
+    config = BusConfig(settings.bus_interface, settings.bus_channel, settings.bus_bitrate)
+
+    def open_bus(profile: str, seed: int | None) -> StandBus:
+        return StandBus(profile, config, seed=seed)
+
+    return ControllerRunner(open_bus, settings.data_dir / "runs", settings.time_mode)
+
+
+def create_app(settings: Settings | None = None,
+               runner_factory: Callable[[Settings], StandRunner] | None = None) -> FastAPI:
+    """Build the app; storage and stand open at start-up and close at shutdown."""
+    settings = settings or get_settings()
+    factory = runner_factory or default_runner
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        storage = Storage(settings.database)
+        aborted = storage.recover()
+        if aborted:
+            log.warning("marked %d run(s) interrupted by a restart as aborted: %s",
+                        len(aborted), ", ".join(aborted))
+        jobs = JobManager(storage, factory(settings))
+        app.state.settings, app.state.storage, app.state.jobs = settings, storage, jobs
+        try:
+            yield
+        finally:
+            jobs.close()
+            storage.close()
+
+    app = FastAPI(title="motorstand", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    app.state.settings = settings
+    errors.install(app)
+    for router in (health.router, profiles.router, runs.router, analysis.router, results.router,
+                   stand.router):
+        app.include_router(router)
+    return app

@@ -1,0 +1,142 @@
+"""Analyses of stored or uploaded runs: the same operations and field names as the CLI.
+
+Each route takes JSON (run ids) or a multipart form (CSV files or ids in the same
+fields), calls the domain function off the event loop, stores the result with its
+inputs and answers the result's fields plus ``result_id``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from fastapi import APIRouter, HTTPException, Request
+from fastapi.concurrency import run_in_threadpool
+from pydantic import BaseModel
+
+from api.deps import Authorized, SettingsDep, StorageDep
+from api.schemas import (
+    DiagnoseRequest,
+    EfficiencyRequest,
+    IdentifyRequest,
+    StepIdentifyRequest,
+    TorqueConstantRequest,
+)
+from api.uploads import parse_body
+from stand.jsonable import to_jsonable
+from stand.runfile import Run, RunKind
+from stand.storage import Storage
+
+router = APIRouter(tags=["analysis"])
+
+
+def _domain(name: str, *modules: str) -> Callable[..., Any]:
+    """The domain function ``name`` from the first of ``modules`` that has it; 501 while
+    that part of the project is not built."""
+    for module in modules:
+        try:
+            function: Callable[..., Any] = getattr(importlib.import_module(module), name)
+        except (ModuleNotFoundError, AttributeError):
+            continue
+        return function
+    raise HTTPException(501, f"{name} ({', '.join(modules)}) is not available in this build")
+
+
+def _identify(body: IdentifyRequest, runs: dict[str, Any]) -> Any:
+    return _domain("identify_run", "stand.ident.identify", "stand.ident.qmatrix")(
+        runs["run"], method=body.method, no_load_current_A=body.no_load_current_A)
+
+
+def _torque_constant(body: TorqueConstantRequest, runs: dict[str, Any]) -> Any:
+    return _domain("torque_constant", "stand.ident.torque_constant")(
+        runs["no_load"], runs["loaded"], body.added_inertia, method=body.method,
+        compensate=body.compensate)
+
+
+def _efficiency(body: EfficiencyRequest, runs: dict[str, Any]) -> Any:
+    return _domain("efficiency", "stand.ident.efficiency")(runs["run"], body.ratio, body.k_in,
+                                                          body.k_out)
+
+
+def _step_identify(body: StepIdentifyRequest, runs: dict[str, Any]) -> Any:
+    return _domain("identify_steps", "stand.stepid")(runs["runs"], known=dict(body.known),
+                                                     method=body.method)
+
+
+def _diagnose(body: DiagnoseRequest, runs: dict[str, Any]) -> Any:
+    options = body.model_dump(include={"kt", "horizon_s", "max_effects"}, exclude_none=True)
+    return _domain("diagnose", "stand.diagnose")(runs["train"], runs["holdout"], **options)
+
+
+@dataclass(frozen=True)
+class Operation:
+    """One analysis: its request model, the kind of run each run field holds, the call."""
+
+    name: str
+    model: type[BaseModel]
+    run_fields: dict[str, RunKind]
+    call: Callable[[Any, dict[str, Any]], Any]
+
+
+OPERATIONS: dict[str, Operation] = {op.name: op for op in (
+    Operation("identify", IdentifyRequest, {"run": "single"}, _identify),
+    Operation("torque-constant", TorqueConstantRequest,
+              {"no_load": "single", "loaded": "single"}, _torque_constant),
+    Operation("efficiency", EfficiencyRequest, {"run": "reducer"}, _efficiency),
+    Operation("step-identify", StepIdentifyRequest, {"runs": "step"}, _step_identify),
+    Operation("diagnose", DiagnoseRequest, {"train": "single", "holdout": "single"}, _diagnose),
+)}
+
+
+def _load_runs(storage: Storage, op: Operation, body: BaseModel) -> dict[str, Any]:
+    runs: dict[str, Any] = {}
+    for name, kind in op.run_fields.items():
+        value = getattr(body, name)
+        if isinstance(value, list):
+            runs[name] = [storage.load_run(v, kind) for v in value]
+        else:
+            runs[name] = storage.load_run(value, kind)
+    return runs
+
+
+def _execute(storage: Storage, op: Operation, body: BaseModel) -> dict[str, Any]:
+    runs = _load_runs(storage, op, body)
+    result = to_jsonable(op.call(body, runs))
+    inputs = body.model_dump(mode="json")
+    result_id = storage.add_result(op.name, inputs, result)
+    return {**result, "result_id": result_id, "inputs": inputs}
+
+
+def _openapi(op: Operation) -> dict[str, Any]:
+    """Both request bodies in the OpenAPI document (the route parses them itself)."""
+    schema = op.model.model_json_schema()
+    form = {**schema, "properties": dict(schema["properties"])}
+    for name in op.run_fields:
+        prop = schema["properties"][name]
+        one = {"anyOf": [{"type": "string", "format": "binary"}, {"type": "string"}]}
+        form["properties"][name] = ({**prop, "items": one} if prop.get("type") == "array"
+                                    else {**prop, **one})
+    return {"requestBody": {"required": True, "content": {
+        "application/json": {"schema": schema},
+        "multipart/form-data": {"schema": form},
+    }}}
+
+
+def _route(op: Operation) -> Callable[..., Any]:
+    async def analyse(request: Request, storage: StorageDep, settings: SettingsDep) -> dict[str, Any]:
+        body = await parse_body(request, op.model, op.run_fields, storage,
+                                settings.upload_limit_bytes)
+        return await run_in_threadpool(_execute, storage, op, body)
+
+    analyse.__name__ = op.name.replace("-", "_")
+    analyse.__doc__ = op.model.__doc__
+    return analyse
+
+
+for _op in OPERATIONS.values():
+    router.add_api_route(f"/{_op.name}", _route(_op), methods=["POST"], dependencies=[Authorized],
+                         openapi_extra=_openapi(_op), summary=(_op.model.__doc__ or "").split("\n")[0])
+
+__all__ = ["OPERATIONS", "Operation", "Run", "router"]

@@ -1,0 +1,128 @@
+"""Uploaded run files and the two ways to call an analysis: JSON with run ids, or a form.
+
+An analysis route takes either ``application/json`` (the request model, runs by stored
+id) or ``multipart/form-data`` with the same field names, where a run field may be a CSV
+file (CONTRACT §1) instead of an id. Uploaded files are stored as runs (origin
+``upload``) so every result keeps its inputs.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, get_args, get_origin
+
+from fastapi import HTTPException, Request, UploadFile
+from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
+from pydantic import BaseModel, ValidationError
+from starlette.datastructures import UploadFile as StarletteUpload
+
+from stand.errors import RunFileError
+from stand.runfile import Run, RunKind, parse_run
+from stand.storage import Storage
+
+#: Bytes read from an upload at a time.
+READ_BLOCK_BYTES = 1 << 20
+
+
+def too_large(limit: int) -> HTTPException:
+    return HTTPException(413, f"upload larger than the limit of {limit} bytes "
+                              "(setting STAND_UPLOAD_LIMIT_BYTES)")
+
+
+async def read_upload(file: UploadFile | StarletteUpload, kind: RunKind, limit: int,
+                      field: str) -> Run:
+    """Read and validate one uploaded run file; 413 past ``limit`` bytes."""
+    data = bytearray()
+    while block := await file.read(READ_BLOCK_BYTES):
+        data += block
+        if len(data) > limit:
+            raise too_large(limit)
+    source = f"{field}: {file.filename or '<upload>'}"
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RunFileError(f"{source}: not a UTF-8 text file ({exc.reason})") from exc
+    return await run_in_threadpool(parse_run, text, kind, source)
+
+
+def check_length(request: Request, limit: int) -> None:
+    """413 at once when the declared body is larger than ``limit`` (plus form overhead)."""
+    length = request.headers.get("content-length")
+    if length is not None and length.isdigit() and int(length) > limit + READ_BLOCK_BYTES:
+        raise too_large(limit)
+
+
+def _is_list(annotation: Any) -> bool:
+    return get_origin(annotation) is list
+
+
+def _is_dict(annotation: Any) -> bool:
+    return get_origin(annotation) is dict or any(get_origin(a) is dict for a in get_args(annotation))
+
+
+async def parse_body(request: Request, model: type[BaseModel], run_fields: dict[str, RunKind],
+                     storage: Storage, limit: int) -> BaseModel:
+    """The validated request of an analysis, from JSON or from a multipart form.
+
+    Uploaded files in ``run_fields`` are parsed as runs of the given kind, stored, and
+    replaced by their new ids. Errors: 422 naming the field, 413 past ``limit``.
+    """
+    check_length(request, limit)
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type == "multipart/form-data":
+        data = await _form_data(request, model, run_fields, storage, limit)
+    else:
+        try:
+            data = await request.json()
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise RequestValidationError([{
+                "type": "json_invalid", "loc": ("body",), "input": None,
+                "msg": f"the body must be a JSON object ({exc}) or a multipart form"}]) from exc
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise RequestValidationError(
+            [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False)]) from exc
+
+
+async def _form_data(request: Request, model: type[BaseModel], run_fields: dict[str, RunKind],
+                     storage: Storage, limit: int) -> dict[str, Any]:
+    try:
+        form = await request.form(max_files=200, max_fields=200)
+    except Exception as exc:  # malformed multipart body (starlette raises several kinds)
+        if isinstance(exc, HTTPException):
+            raise
+        raise RequestValidationError([{"type": "value_error", "loc": ("body",), "input": None,
+                                       "msg": f"malformed multipart form: {exc}"}]) from exc
+    data: dict[str, Any] = {}
+    total = 0
+    try:
+        for name in form:
+            values = form.getlist(name)
+            annotation = model.model_fields[name].annotation if name in model.model_fields else None
+            items: list[Any] = []
+            for value in values:
+                if isinstance(value, StarletteUpload):
+                    if name not in run_fields:
+                        raise RequestValidationError([{
+                            "type": "value_error", "loc": ("body", name), "input": value.filename,
+                            "msg": f"field {name!r} takes no file; files go in "
+                                   f"{', '.join(run_fields)}"}])
+                    run = await read_upload(value, run_fields[name], limit - total, name)
+                    total += value.size or 0
+                    record = await run_in_threadpool(storage.store_run, run, run_fields[name],
+                                                     "upload", {"filename": value.filename,
+                                                                "field": name})
+                    items.append(record.id)
+                elif annotation is not None and _is_dict(annotation):
+                    try:
+                        items.append(json.loads(value))
+                    except ValueError:
+                        items.append(value)
+                else:
+                    items.append(value)
+            data[name] = items if annotation is not None and _is_list(annotation) else items[-1]
+    finally:
+        await form.close()
+    return data

@@ -1,0 +1,184 @@
+"""The master's view of one CiA 402 drive: SDO access, PDO mapping, enabling.
+
+Works with any CiA 402 drive whose EDS is given: the PDO layouts are written over SDO
+(CiA 301 §7.2.2: invalidate the PDO, clear the mapping, write the entries, set the count,
+set the transmission type, make it valid again).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import canopen
+
+from bus import cia402
+from bus.eds import Scaling, load_od
+from bus.pdo import COB_ID_INVALID, SYNCHRONOUS, Layout, entries_for
+from stand.errors import BusError, BusTimeout, DriveFault, InputError
+
+#: Time an SDO answer may take, s.
+SDO_TIMEOUT_S = 0.3
+#: Time a drive may take to reach a CiA 402 state after a controlword, s.
+STATE_TIMEOUT_S = 0.5
+STATE_POLL_S = 0.005
+TPDO_COMM, TPDO_MAP, RPDO_COMM, RPDO_MAP = 0x1800, 0x1A00, 0x1400, 0x1600
+DRIVE_MODES = tuple(cia402.MODES)
+
+
+@dataclass(frozen=True)
+class DriveConfig:
+    """One drive of a run.
+
+    Parameters
+    ----------
+    node_id : int
+        CANopen node id.
+    mode : {'speed', 'current', 'voltage'}
+        What the run commands.
+    scaling : Scaling
+        Units of its raw values.
+    eds : path or None
+        Its EDS (default: the simulated drive's).
+    velocity : bool
+        Also map velocity actual (and voltage actual when the EDS has 0x2001) into TPDO2.
+    """
+
+    node_id: int
+    mode: str
+    scaling: Scaling
+    eds: str | Path | None = None
+    velocity: bool = True
+
+    def __post_init__(self) -> None:
+        if self.mode not in DRIVE_MODES:
+            raise InputError(f"drive mode must be one of {', '.join(DRIVE_MODES)}, not {self.mode!r}")
+
+
+class Drive:
+    """A remote CiA 402 drive on the master's network."""
+
+    def __init__(self, network: canopen.Network, config: DriveConfig,
+                 sdo_timeout_s: float = SDO_TIMEOUT_S) -> None:
+        self.config = config
+        self.id = config.node_id
+        self.od = load_od(config.eds, config.node_id)
+        self.node = canopen.RemoteNode(config.node_id, self.od)
+        self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+        self.node.sdo.MAX_RETRIES = 0
+        network.add_node(self.node)
+        self.network = network
+        self.rpdo_cob_id = 0
+        self.rpdo: Layout | None = None
+        self.tpdos: list[tuple[int, Layout]] = []
+        self.controlword = cia402.CW_DISABLE_VOLTAGE
+
+    # -- SDO ---------------------------------------------------------------------------
+    def _variable(self, index: int, subindex: int) -> Any:
+        try:
+            obj = self.node.sdo[index]
+            return obj[subindex] if not isinstance(obj, canopen.sdo.base.Variable) else obj
+        except KeyError as exc:
+            raise BusError(f"node {self.id}: object 0x{index:04X}:{subindex} is not in its EDS") from exc
+
+    def read(self, index: int, subindex: int = 0) -> Any:
+        """SDO upload of ``index:subindex``; errors name the node and the object."""
+        var = self._variable(index, subindex)
+        try:
+            return var.raw
+        except canopen.SdoCommunicationError as exc:
+            raise BusTimeout(f"node {self.id}: no SDO answer reading 0x{index:04X}:{subindex} "
+                             f"({var.name}): {exc}; is the drive powered and on the bus?") from exc
+        except canopen.SdoAbortedError as exc:
+            raise BusError(f"node {self.id}: SDO read of 0x{index:04X}:{subindex} ({var.name}) "
+                           f"aborted: {exc}") from exc
+
+    def write(self, index: int, subindex: int, value: Any) -> None:
+        """SDO download of ``value`` to ``index:subindex``."""
+        var = self._variable(index, subindex)
+        try:
+            var.raw = value
+        except canopen.SdoCommunicationError as exc:
+            raise BusTimeout(f"node {self.id}: no SDO answer writing 0x{index:04X}:{subindex} "
+                             f"({var.name}): {exc}; is the drive powered and on the bus?") from exc
+        except canopen.SdoAbortedError as exc:
+            raise BusError(f"node {self.id}: SDO write of {value!r} to 0x{index:04X}:{subindex} "
+                           f"({var.name}) aborted: {exc}") from exc
+
+    def has(self, index: int) -> bool:
+        return index in self.od
+
+    # -- PDO mapping -------------------------------------------------------------------
+    def _map(self, comm: int, mapping: int, indices: list[int]) -> tuple[int, Layout]:
+        cob_id = int(self.read(comm, 1)) & 0x7FF
+        self.write(comm, 1, cob_id | COB_ID_INVALID)
+        self.write(mapping, 0, 0)
+        entries = entries_for(self.od, indices)
+        for k, value in enumerate(entries, start=1):
+            self.write(mapping, k, value)
+        self.write(mapping, 0, len(entries))
+        self.write(comm, 2, SYNCHRONOUS)
+        self.write(comm, 1, cob_id)
+        return cob_id, Layout.from_entries(self.od, entries)
+
+    def _unmap(self, comm: int) -> None:
+        if comm in self.od:
+            cob_id = int(self.read(comm, 1))
+            self.write(comm, 1, cob_id | COB_ID_INVALID)
+
+    def configure_pdos(self) -> None:
+        """Map RPDO1 (controlword + target) and TPDO1/TPDO2 (actual values) over SDO."""
+        target = cia402.TARGET_OBJECT[self.config.mode][0]
+        self.rpdo_cob_id, self.rpdo = self._map(RPDO_COMM, RPDO_MAP, [cia402.CONTROLWORD, target])
+        self._unmap(RPDO_COMM + 1)
+        self.tpdos = [self._map(TPDO_COMM, TPDO_MAP, [cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL])]
+        second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if self.has(cia402.VOLTAGE_ACTUAL)
+                                             else [])
+        if self.config.velocity:
+            self.tpdos.append(self._map(TPDO_COMM + 1, TPDO_MAP + 1, second))
+        else:
+            self._unmap(TPDO_COMM + 1)
+
+    def rpdo_data(self, controlword: int, target_SI: float) -> bytes:
+        """RPDO1 data for ``controlword`` and a target in SI units (rad/s, A or V)."""
+        assert self.rpdo is not None, "configure_pdos() first"
+        raw = self.config.scaling.target_raw(self.config.mode, target_SI)
+        return self.rpdo.pack([controlword, raw])
+
+    # -- CiA 402 -----------------------------------------------------------------------
+    def state(self) -> cia402.State:
+        return cia402.state_of(int(self.read(cia402.STATUSWORD)))
+
+    def command(self, controlword: int, expect: cia402.State | None = None,
+                timeout_s: float = STATE_TIMEOUT_S) -> cia402.State:
+        """Write a controlword over SDO and wait for the state ``expect``."""
+        self.write(cia402.CONTROLWORD, 0, controlword)
+        self.controlword = controlword
+        state = self.state()
+        deadline = time.monotonic() + timeout_s
+        while expect is not None and state is not expect:
+            if state is cia402.State.FAULT:
+                code = self.read(cia402.ERROR_CODE) if self.has(cia402.ERROR_CODE) else 0
+                raise DriveFault(f"node {self.id}: drive in FAULT (error code 0x{code:04X}) while "
+                                 f"waiting for {expect.name}; clear the fault and retry")
+            if time.monotonic() > deadline:
+                raise BusTimeout(f"node {self.id}: drive stayed in {state.name}, expected "
+                                 f"{expect.name} within {timeout_s} s after controlword 0x{controlword:04X}")
+            time.sleep(STATE_POLL_S)
+            state = self.state()
+        return state
+
+    def enable(self) -> None:
+        """Fault reset if needed, then shutdown → switch on → enable operation."""
+        S = cia402.State
+        if self.state() is S.FAULT:
+            self.command(cia402.CW_FAULT_RESET, S.SWITCH_ON_DISABLED)
+        self.command(cia402.CW_DISABLE_VOLTAGE, S.SWITCH_ON_DISABLED)
+        self.command(cia402.CW_SHUTDOWN, S.READY_TO_SWITCH_ON)
+        self.command(cia402.CW_SWITCH_ON, S.SWITCHED_ON)
+        self.command(cia402.CW_ENABLE_OPERATION, S.OPERATION_ENABLED)
+
+    def disable(self) -> None:
+        self.command(cia402.CW_DISABLE_VOLTAGE, cia402.State.SWITCH_ON_DISABLED)

@@ -1,0 +1,282 @@
+"""A simulated CiA 402 drive: a canopen LocalNode with stand physics behind it.
+
+canopen's LocalNode answers SDO and follows NMT commands, but does no PDO work (canopen
+issue #555). This node adds: boot-up after an NMT reset, RPDO reception, TPDOs on SYNC
+only when OPERATIONAL (their mapping read from its own object dictionary, as the master
+wrote it), the CiA 402 state machine, and EMCY on a fault. The SYNC itself is handled
+by :class:`bus.simstand.SimStand`, which owns the plant that one or two nodes share.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import struct
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
+import canopen
+from canopen.sdo import SdoAbortedError
+
+from bus import cia402
+from bus.eds import Scaling, load_od
+from bus.pdo import COB_ID_INVALID, Layout
+from stand.physics.plant import Measurement
+
+log = logging.getLogger(__name__)
+
+NMT_INITIALISING, NMT_STOPPED, NMT_OPERATIONAL, NMT_PRE_OPERATIONAL = 0, 4, 5, 127
+#: Number of RPDOs and TPDOs the node offers.
+PDO_COUNT = 2
+#: Over-current trips when the measured current exceeds this multiple of 0x6073.
+OVER_CURRENT_MARGIN = 1.0
+#: SDO abort: object cannot be mapped / general parameter incompatibility.
+ABORT_GENERAL = 0x0800_0000
+
+
+class Plant(Protocol):
+    def command(self, mode: str, target: float, port: int = 0) -> None: ...
+    def measure(self, dt_s: float, port: int = 0) -> Measurement: ...
+    def advance(self, dt_s: float) -> None: ...
+
+
+class SimDriveNode:
+    """One simulated drive on ``network``, driving ``port`` of the plant ``plant()``.
+
+    Parameters
+    ----------
+    network : canopen.Network
+        The (connected) network of the simulated stand.
+    node_id : int
+        CANopen node id, 1-127.
+    plant : callable
+        Returns the current plant (it is rebuilt on NMT reset).
+    port : int
+        Port of the plant this drive drives (0 input motor, 1 output motor).
+    scaling : Scaling
+        Units of its raw process data.
+    max_current_A : float
+        Over-current threshold (0x6073), A.
+    eds : path or None
+        EDS of the node (default: the shipped simulated drive).
+    on_reset : callable or None
+        Called after an NMT reset node, before the boot-up message.
+    on_write : callable or None
+        Called as ``on_write(node, index, value)`` after an SDO write of a manufacturer
+        object (0x2000-0x5FFF).
+    """
+
+    def __init__(self, network: canopen.Network, node_id: int, plant: Callable[[], Plant],
+                 port: int, scaling: Scaling, max_current_A: float,
+                 eds: str | Path | None = None,
+                 on_reset: Callable[[SimDriveNode], None] | None = None,
+                 on_write: Callable[[SimDriveNode, int, Any], None] | None = None) -> None:
+        self.id = node_id
+        self.network = network
+        self.plant = plant
+        self.port = port
+        self.scaling = scaling
+        self.od = load_od(eds, node_id)
+        self.node = canopen.LocalNode(node_id, self.od)
+        self.node.add_write_callback(self._on_sdo_write)
+        self.node.add_read_callback(self._on_sdo_read)
+        network.add_node(self.node)
+        network.subscribe(0, self._on_nmt)
+        self._on_reset = on_reset
+        self._on_write = on_write
+        self.max_current_A = max_current_A
+        self.heartbeat_muted = False
+        self.pdo_drop_every = 0  # fault injection: drop every n-th TPDO (0 = none)
+        self._tpdo_count = 0
+        self.syncs = 0  # SYNCs seen since power-on (stand time = syncs · period)
+        self.quick_stop_at: tuple[float, int] | None = None  # (time.monotonic(), syncs)
+        self._subscribed: list[int] = []
+        self._power_on()
+
+    # -- state -------------------------------------------------------------------------
+    def _power_on(self) -> None:
+        self.node.data_store.clear()
+        self.sm = cia402.StateMachine()
+        self.mode = "current"
+        self.values: dict[int, int] = {cia402.CONTROLWORD: 0}
+        self.syncs = 0
+        self.quick_stop_at = None
+        self.measurement = Measurement(0.0, 0.0, 0.0, 0.0)
+        self._tpdos: list[tuple[int, Layout]] | None = None
+        self._resubscribe({})
+        self.node.data_store.setdefault(0x6075, {})[0] = struct.pack(
+            "<I", int(round(self.scaling.rated_current_A * 1000)))
+        self.node.data_store.setdefault(0x6073, {})[0] = struct.pack(
+            "<H", min(0xFFFF, int(self.max_current_A / self.scaling.amp_per_unit)))
+
+    @property
+    def nmt_state(self) -> int:
+        return self.node.nmt._state
+
+    def boot(self) -> None:
+        """Send the boot-up message and enter PRE-OPERATIONAL (CiA 301 §7.2.8.3)."""
+        nmt = self.node.nmt
+        nmt.stop_heartbeat()
+        nmt._state = NMT_INITIALISING
+        self.network.send_message(0x700 + self.id, bytes([0]))
+        nmt._state = NMT_PRE_OPERATIONAL
+        period_ms = struct.unpack("<H", self.node.get_data(0x1017, 0))[0]
+        if period_ms and not self.heartbeat_muted:
+            nmt.start_heartbeat(period_ms)
+
+    def close(self) -> None:
+        self.node.nmt.stop_heartbeat()
+        self.network.unsubscribe(0, self._on_nmt)
+        self._resubscribe({})
+
+    def mute_heartbeat(self) -> None:
+        """Fault injection: stop producing heartbeats (the node otherwise keeps working)."""
+        self.heartbeat_muted = True
+        self.node.nmt.stop_heartbeat()
+
+    # -- NMT ---------------------------------------------------------------------------
+    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        command, target = data[0], data[1]
+        if target not in (0, self.id):
+            return
+        if command in (0x81, 0x82):  # reset node / reset communication
+            self._power_on()
+            if command == 0x81 and self._on_reset:
+                self._on_reset(self)
+            self.boot()
+        elif self.nmt_state != NMT_OPERATIONAL and self.sm.enabled:
+            self._disable()
+        if self.nmt_state == NMT_OPERATIONAL:
+            self._tpdos = None
+            self._resubscribe(self._rpdo_layouts())
+
+    # -- SDO callbacks -----------------------------------------------------------------
+    def _on_sdo_read(self, index: int, subindex: int, od: Any) -> Any:
+        m = self.measurement
+        s = self.scaling
+        if index == cia402.STATUSWORD:
+            return self.sm.statusword
+        if index == cia402.POSITION_ACTUAL:
+            return int(round(m.position_rad / s.rad_per_count))
+        if index == cia402.VELOCITY_ACTUAL:
+            return int(round(m.velocity_rad_s / s.velocity_unit_rad_s))
+        if index == cia402.CURRENT_ACTUAL:
+            return int(round(m.current_A / s.amp_per_unit))
+        if index == cia402.VOLTAGE_ACTUAL:
+            return int(round(m.voltage_V / s.voltage_unit_V))
+        if index == cia402.MODES_DISPLAY:
+            return cia402.MODES[self.mode]
+        if index == cia402.ERROR_CODE:
+            return self.values.get(cia402.ERROR_CODE, 0)
+        return None
+
+    def _on_sdo_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+        value = od.decode_raw(data)
+        if index == cia402.CONTROLWORD:
+            self._controlword(int(value))
+        elif index == cia402.MODES_OF_OPERATION:
+            modes = {v: k for k, v in cia402.MODES.items()}
+            if value not in modes:
+                raise SdoAbortedError(0x0609_0030)  # value range exceeded
+            self.mode = modes[value]
+        elif index in (0x60FF, 0x6071, 0x2000):
+            self.values[index] = int(value)
+        elif 0x1400 <= index < 0x1C00:
+            if self.nmt_state == NMT_OPERATIONAL:
+                raise SdoAbortedError(ABORT_GENERAL | 0x22)  # not in the present device state
+            self._tpdos = None
+        elif 0x2000 <= index < 0x6000 and self._on_write:
+            self._on_write(self, index, value)
+
+    # -- CiA 402 -----------------------------------------------------------------------
+    def _controlword(self, word: int) -> None:
+        before = self.sm.state
+        self.values[cia402.CONTROLWORD] = word
+        after = self.sm.on_controlword(word)
+        if after is before:
+            return
+        if after is cia402.State.QUICK_STOP_ACTIVE:
+            self.quick_stop_at = (time.monotonic(), self.syncs)
+            self.plant().command("speed", 0.0, self.port)
+        elif before in (cia402.State.OPERATION_ENABLED, cia402.State.QUICK_STOP_ACTIVE):
+            self.plant().command("current", 0.0, self.port)
+
+    def _disable(self) -> None:
+        self.sm.state = cia402.State.SWITCH_ON_DISABLED
+        self.plant().command("current", 0.0, self.port)
+
+    def fault(self, code: int, register: int = 0x01) -> None:
+        """Enter FAULT, remove torque and send EMCY ``code`` (CiA 301 §7.2.7)."""
+        self.sm.fault()
+        self.values[cia402.ERROR_CODE] = code
+        self.plant().command("current", 0.0, self.port)
+        self.network.send_message(0x80 + self.id, struct.pack("<HB5s", code, register, b""))
+        log.warning("node %d: fault 0x%04X", self.id, code)
+
+    # -- PDO ---------------------------------------------------------------------------
+    def _layouts(self, comm: int, mapping: int) -> list[tuple[int, Layout]]:
+        out = []
+        for n in range(PDO_COUNT):
+            cob_id = struct.unpack("<I", self.node.get_data(comm + n, 1))[0]
+            count = self.node.get_data(mapping + n, 0)[0]
+            if cob_id & COB_ID_INVALID or count == 0:
+                continue
+            entries = [struct.unpack("<I", self.node.get_data(mapping + n, k))[0]
+                       for k in range(1, count + 1)]
+            out.append((cob_id & 0x7FF, Layout.from_entries(self.od, entries)))
+        return out
+
+    def _rpdo_layouts(self) -> dict[int, Layout]:
+        return dict(self._layouts(0x1400, 0x1600))
+
+    def _resubscribe(self, layouts: dict[int, Layout]) -> None:
+        for cob_id in self._subscribed:
+            self.network.unsubscribe(cob_id, self._on_rpdo)
+        self._rpdo = layouts
+        self._subscribed = list(layouts)
+        for cob_id in self._subscribed:
+            self.network.subscribe(cob_id, self._on_rpdo)
+
+    def _on_rpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        layout = self._rpdo.get(can_id)
+        if layout is None or self.nmt_state != NMT_OPERATIONAL:
+            return
+        for index, value in zip(layout.indices, layout.unpack(data), strict=True):
+            if index == cia402.CONTROLWORD:
+                if value != self.values.get(index):
+                    self._controlword(int(value))  # a controlword acts at once
+            else:
+                self.values[index] = int(value)
+
+    def sample(self, dt_s: float) -> None:
+        """At SYNC: measure, check the limits, send the TPDOs when OPERATIONAL."""
+        m = self.plant().measure(dt_s, self.port)
+        self.measurement = m
+        self.syncs += 1
+        if abs(m.current_A) > self.max_current_A * OVER_CURRENT_MARGIN and self.sm.enabled:
+            self.fault(cia402.EMCY_OVER_CURRENT, register=0x03)
+        if self.nmt_state != NMT_OPERATIONAL:
+            return
+        if self._tpdos is None:
+            self._tpdos = self._layouts(0x1800, 0x1A00)
+        for cob_id, layout in self._tpdos:
+            self._tpdo_count += 1
+            if self.pdo_drop_every and self._tpdo_count % self.pdo_drop_every == 0:
+                continue
+            values = [self._on_sdo_read(index, 0, None) for index in layout.indices]
+            self.network.send_message(cob_id, layout.pack(values))
+
+    def actuate(self) -> None:
+        """At SYNC, after sampling: apply the latest target when OPERATION ENABLED."""
+        if not self.sm.enabled:
+            return
+        index, _, _ = cia402.TARGET_OBJECT[self.mode]
+        raw = self.values.get(index, 0)
+        unit = {"speed": self.scaling.velocity_unit_rad_s, "current": self.scaling.amp_per_unit,
+                "voltage": self.scaling.voltage_unit_V}[self.mode]
+        target = raw * unit
+        if not math.isfinite(target):
+            target = 0.0
+        self.plant().command(self.mode, target, self.port)

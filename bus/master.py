@@ -1,0 +1,375 @@
+"""The CANopen master of the stand: boot, configure, supervise, and run a SYNC loop.
+
+:meth:`Master.setup` resets the drives (NMT reset node, waits for each boot-up), sets
+heartbeat, SYNC counter and cycle period, maps the PDOs over SDO, starts the nodes and
+brings each drive to OPERATION ENABLED. :meth:`Master.run` then sends, every period, the
+RPDOs (controlword + target) and a SYNC, and collects the TPDOs in a
+:class:`~bus.sampler.Sampler`; it supervises heartbeats and EMCY all along and quick-stops
+every drive at once when one fails.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import can
+import canopen
+import numpy as np
+
+from bus import cia402
+from bus.adapters import NOTIFIER_CYCLE_S, BusConfig, open_bus
+from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
+from bus.sampler import Sampler, Samples
+from bus.sync import SYNC_COB_ID, SYNC_COUNTER_OVERFLOW, RealtimeClock, SyncCounter, check_time_mode
+from bus.trace import Trace
+from stand.errors import BusError, BusTimeout, DriveFault, HeartbeatLost, InputError
+
+log = logging.getLogger(__name__)
+
+#: Heartbeat period the drives are told to produce (0x1017), s.
+HEARTBEAT_PERIOD_S = 0.1
+#: A heartbeat older than this many periods means the node is lost.
+HEARTBEAT_CONSUMER_FACTOR = 1.5
+#: Time a drive may take to send its boot-up message after NMT reset node, s.
+BOOT_TIMEOUT_S = 2.0
+#: Lockstep: time the TPDOs of one SYNC may take before they count as lost, s. Generous:
+#: lockstep cannot tell a late TPDO from the next one, so a window must never close early.
+PDO_TIMEOUT_S = 0.5
+#: Longest single wait, so heartbeats and stop requests are checked while waiting, s.
+POLL_S = 0.01
+#: Stand time the drives spend in quick stop after a run before they are disabled, s.
+STOP_RAMP_S = 0.1
+NMT_START, NMT_PRE_OPERATIONAL, NMT_RESET_NODE = 0x01, 0x80, 0x81
+NMT_STATE_NAMES = {0: "BOOT-UP", 4: "STOPPED", 5: "OPERATIONAL", 127: "PRE-OPERATIONAL"}
+
+ChunkCallback = Callable[[Samples, int, int], None]
+ProgressCallback = Callable[[int, int], None]
+
+
+class MasterNetwork(canopen.Network):
+    """A canopen network that also logs the frames it sends to the run's trace."""
+
+    trace: Trace | None = None
+    channel: str | None = None
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        if not self.bus:
+            raise BusError("the master's CAN bus is closed")
+        msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=False,
+                          is_remote_frame=remote, is_rx=False, channel=self.channel)
+        try:
+            with self.send_lock:
+                self.bus.send(msg)
+        except can.CanError as exc:
+            raise BusError(f"cannot send frame 0x{can_id:03X}: {exc}") from exc
+        trace = self.trace
+        if trace is not None:
+            trace.sent(msg)
+
+
+class Master:
+    """The stand's CANopen master on one bus.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus.
+    heartbeat_period_s, sdo_timeout_s, pdo_timeout_s, boot_timeout_s : float
+        Timeouts (the module constants by default; tests shrink them), s.
+    """
+
+    def __init__(self, config: BusConfig | None = None, *,
+                 heartbeat_period_s: float = HEARTBEAT_PERIOD_S,
+                 sdo_timeout_s: float = SDO_TIMEOUT_S, pdo_timeout_s: float = PDO_TIMEOUT_S,
+                 boot_timeout_s: float = BOOT_TIMEOUT_S) -> None:
+        self.config = config or BusConfig()
+        self.heartbeat_period_s = heartbeat_period_s
+        self.sdo_timeout_s = sdo_timeout_s
+        self.pdo_timeout_s = pdo_timeout_s
+        self.boot_timeout_s = boot_timeout_s
+        self.network = MasterNetwork(open_bus(self.config))
+        self.network.channel = self.config.channel
+        self.network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S
+        self.network.connect()
+        self.drives: list[Drive] = []
+        self._heartbeat: dict[int, tuple[float, int]] = {}
+        self._booted: dict[int, threading.Event] = {}
+        self._emcy: dict[int, list[tuple[float, int]]] = {}
+        self._counters: dict[int, dict[str, int]] = {}
+        self._quick_stop = threading.Event()
+        self.running = False
+        self.period_s = 0.0
+        self.window = 0
+        self.time_mode = "lockstep"
+        self.quick_stop_wall_s: float | None = None
+
+    # -- callbacks from the bus reader thread --------------------------------------------
+    def _on_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        node_id = can_id - 0x700
+        state = data[0] & 0x7F if data else 0
+        self._heartbeat[node_id] = (time.monotonic(), state)
+        if state == 0 and node_id in self._booted:
+            self._booted[node_id].set()
+
+    def _on_emcy(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        node_id = can_id - 0x80
+        code = int.from_bytes(bytes(data[:2]), "little") if len(data) >= 2 else 0
+        if code:  # 0x0000 = error reset / no error
+            self._emcy.setdefault(node_id, []).append((time.monotonic(), code))
+            log.warning("node %d: EMCY 0x%04X", node_id, code)
+
+    # -- setup -----------------------------------------------------------------------------
+    def _forget_drives(self) -> None:
+        for drive in self.drives:
+            for cob_id, callback in ((0x700 + drive.id, self._on_heartbeat),
+                                     (0x80 + drive.id, self._on_emcy)):
+                if cob_id in self.network.subscribers:
+                    self.network.unsubscribe(cob_id, callback)
+            self.network.nodes.pop(drive.id, None)
+        self.drives = []
+
+    def setup(self, drives: Sequence[DriveConfig], period_s: float,
+              added_inertia_kgm2: float | None = None) -> None:
+        """Reset, configure and enable ``drives`` for SYNC period ``period_s`` seconds.
+
+        ``added_inertia_kgm2`` is written to the simulated drive's 0x2100 (the first drive);
+        a real drive has no such object and the operator attaches the disk by hand.
+        """
+        if period_s <= 0:
+            raise InputError(f"period_s must be > 0, got {period_s}")
+        ids = [d.node_id for d in drives]
+        if len(set(ids)) != len(ids):
+            raise InputError(f"node ids must differ, got {ids}")
+        self._forget_drives()
+        self.period_s = period_s
+        self._quick_stop.clear()
+        self.drives = [Drive(self.network, d, self.sdo_timeout_s) for d in drives]
+        for drive in self.drives:
+            self._booted[drive.id] = threading.Event()
+            self._heartbeat.pop(drive.id, None)
+            self._emcy[drive.id] = []
+            self._counters[drive.id] = {"lost": 0, "duplicates": 0, "late": 0}
+            self.network.subscribe(0x700 + drive.id, self._on_heartbeat)
+            self.network.subscribe(0x80 + drive.id, self._on_emcy)
+        for drive in self.drives:
+            self.network.send_message(0, bytes([NMT_RESET_NODE, drive.id]))
+        for drive in self.drives:
+            if not self._booted[drive.id].wait(self.boot_timeout_s):
+                raise BusTimeout(f"node {drive.id}: no boot-up message within {self.boot_timeout_s} s "
+                                 "after NMT reset node; is the drive powered, on this bus, at this id?")
+        for n, drive in enumerate(self.drives):
+            drive.write(0x1017, 0, max(1, int(round(self.heartbeat_period_s * 1000))))
+            if drive.has(0x1019):
+                drive.write(0x1019, 0, SYNC_COUNTER_OVERFLOW)
+            if drive.has(0x1006):
+                drive.write(0x1006, 0, int(round(period_s * 1e6)))
+            if n == 0 and added_inertia_kgm2 is not None:
+                if drive.has(cia402.ADDED_INERTIA):
+                    drive.write(cia402.ADDED_INERTIA, 0, float(added_inertia_kgm2))
+                elif added_inertia_kgm2:
+                    log.warning("node %d: attach the %.4g kg·m² disk now (real drive)",
+                                drive.id, added_inertia_kgm2)
+            drive.write(cia402.MODES_OF_OPERATION, 0, cia402.MODES[drive.config.mode])
+            drive.configure_pdos()
+        for drive in self.drives:
+            self.network.send_message(0, bytes([NMT_START, drive.id]))
+        for drive in self.drives:
+            drive.enable()
+
+    # -- supervision -----------------------------------------------------------------------
+    def heartbeat_age_s(self, node_id: int) -> float | None:
+        beat = self._heartbeat.get(node_id)
+        return None if beat is None else time.monotonic() - beat[0]
+
+    def _check_nodes(self) -> BusError | None:
+        limit = HEARTBEAT_CONSUMER_FACTOR * self.heartbeat_period_s
+        for drive in self.drives:
+            age = self.heartbeat_age_s(drive.id)
+            if age is not None and age > limit:
+                return HeartbeatLost(f"node {drive.id}: no heartbeat for {age:.3f} s (period "
+                                     f"{self.heartbeat_period_s} s); every drive was quick-stopped")
+            if self._emcy.get(drive.id):
+                _, code = self._emcy[drive.id][-1]
+                return DriveFault(f"node {drive.id}: EMCY 0x{code:04X}; every drive was quick-stopped")
+        return None
+
+    def quick_stop_all(self) -> None:
+        """Send CiA 402 quick stop to every drive at once (RPDO frames, back to back).
+
+        Safe to call from any thread; a running :meth:`run` ends after its current SYNC.
+        """
+        self._quick_stop.set()
+        frames = [(d.rpdo_cob_id, d.rpdo_data(cia402.CW_QUICK_STOP, 0.0))
+                  for d in self.drives if d.rpdo is not None]
+        for cob_id, data in frames:
+            self.network.send_message(cob_id, data)
+        if self.quick_stop_wall_s is None:
+            self.quick_stop_wall_s = time.monotonic()
+        for drive in self.drives:
+            drive.controlword = cia402.CW_QUICK_STOP
+        if not self.running:  # also advance simulated drives so the quick stop acts
+            self._sync_cycles(max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
+
+    def _sync_cycles(self, cycles: int) -> None:
+        counter = SyncCounter(0)
+        for _ in range(cycles):
+            for d in self.drives:
+                if d.rpdo is not None:
+                    self.network.send_message(d.rpdo_cob_id, d.rpdo_data(d.controlword, 0.0))
+            self.network.send_message(SYNC_COB_ID, counter.next()[1])
+            time.sleep(0 if self.time_mode == "lockstep" else self.period_s)
+
+    # -- the run ---------------------------------------------------------------------------
+    def run(self, targets: np.ndarray, *, time_mode: str = "lockstep",
+            on_chunk: ChunkCallback | None = None, chunk_samples: int = 1000,
+            stop: threading.Event | None = None, progress: ProgressCallback | None = None,
+            trace_path: str | Path | None = None) -> Samples:
+        """Send ``targets`` (drives × samples, SI units) one column per SYNC; record the TPDOs.
+
+        The sample of window k is measured at SYNC k, before target k acts (as in
+        :func:`stand.physics.simulate.simulate_motor`). A heartbeat loss or an EMCY quick-stops
+        every drive and ends the run early; so does ``stop``. Either way the samples so far are
+        returned, with ``Samples.aborted`` saying why.
+        """
+        check_time_mode(time_mode)
+        targets = np.atleast_2d(np.asarray(targets, dtype=float))
+        if targets.shape[0] != len(self.drives):
+            raise InputError(f"targets: {len(self.drives)} drive(s) set up, got {targets.shape[0]} rows")
+        if not self.drives or any(d.rpdo is None for d in self.drives):
+            raise InputError("call setup() before run()")
+        n = targets.shape[1]
+        tpdos = {cob: (dn, p, layout) for dn, d in enumerate(self.drives)
+                 for p, (cob, layout) in enumerate(d.tpdos)}
+        sampler = Sampler(tpdos, [d.id for d in self.drives], [d.config.scaling for d in self.drives],
+                          n, self.period_s)
+        trace = Trace(trace_path) if trace_path else None
+        if trace is not None:
+            assert self.network.notifier is not None
+            self.network.notifier.add_listener(trace)
+            self.network.trace = trace
+        for cob in tpdos:
+            self.network.subscribe(cob, sampler.on_tpdo)
+        frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
+                   for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
+                  if d.rpdo is not None]
+        self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
+        clock = RealtimeClock(self.period_s) if time_mode == "realtime" else None
+        counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
+        send = self.network.send_message
+        aborted: str | None = None
+        error: BusError | None = None
+        done = 0
+        try:
+            for k in range(n):
+                self.window = k
+                error = self._check_nodes()
+                if error is not None or self._quick_stop.is_set() or (stop is not None and stop.is_set()):
+                    break
+                wall = clock.wait() if clock is not None else time.monotonic()
+                for per_drive in frames:
+                    send(*per_drive[k])
+                value, data = counter.next()
+                sampler.open(k, wall, value)
+                send(SYNC_COB_ID, data)
+                if clock is None:
+                    error = self._await_window(sampler, stop)
+                    if error is not None:
+                        done = k + 1
+                        break
+                done = k + 1
+                if on_chunk is not None and done % chunk_samples == 0:
+                    on_chunk(sampler.result(done), done - chunk_samples, done)
+                if progress is not None:
+                    progress(done, n)
+            if clock is not None:  # the TPDOs of the last window
+                sampler.complete.wait(self.pdo_timeout_s)
+        finally:
+            sampler.close()
+            self.running = False
+            for cob in tpdos:
+                self.network.unsubscribe(cob, sampler.on_tpdo)
+            if trace is not None:
+                self.network.trace = None
+                assert self.network.notifier is not None
+                self.network.notifier.remove_listener(trace)
+                trace.stop()
+        if error is not None:
+            self.quick_stop_all()
+            aborted = str(error)
+        elif self._quick_stop.is_set():
+            aborted = "quick stop requested"
+        elif stop is not None and stop.is_set():
+            self.quick_stop_all()
+            aborted = "stop requested"
+        samples = sampler.result(done, aborted)
+        samples.meta["error"] = error
+        samples.meta["trace_frames"] = trace.frames if trace is not None else 0
+        for d, ds in zip(self.drives, samples.drives, strict=True):
+            self._counters[d.id] = {"lost": ds.lost, "duplicates": ds.duplicates, "late": ds.late}
+        if on_chunk is not None and done % chunk_samples:
+            on_chunk(samples, done - done % chunk_samples, done)
+        return samples
+
+    def _await_window(self, sampler: Sampler, stop: threading.Event | None) -> BusError | None:
+        deadline = time.monotonic() + self.pdo_timeout_s
+        while not sampler.complete.wait(min(POLL_S, max(0.0, deadline - time.monotonic()))):
+            error = self._check_nodes()
+            if error is not None:
+                return error
+            if time.monotonic() >= deadline or self._quick_stop.is_set() or (
+                    stop is not None and stop.is_set()):
+                return None
+        return None
+
+    def stop_drives(self) -> None:
+        """End of a run: quick stop, let the drives brake, disable them, NMT pre-operational."""
+        if not self.drives:
+            return
+        if self.quick_stop_wall_s is None:
+            self.quick_stop_all()
+        for drive in self.drives:
+            try:
+                drive.disable()
+            except BusError as exc:
+                log.warning("%s", exc)
+            self.network.send_message(0, bytes([NMT_PRE_OPERATIONAL, drive.id]))
+
+    def status(self) -> dict[str, Any]:
+        """Nodes, NMT states, heartbeat ages, EMCY and PDO error counters (JSON data)."""
+        nodes = []
+        for drive in self.drives:
+            beat = self._heartbeat.get(drive.id)
+            emcy = self._emcy.get(drive.id, [])
+            nodes.append({
+                "node_id": drive.id,
+                "mode": drive.config.mode,
+                "nmt_state": NMT_STATE_NAMES.get(beat[1], str(beat[1])) if beat else "UNKNOWN",
+                "heartbeat_age_s": self.heartbeat_age_s(drive.id),
+                "emcy_count": len(emcy),
+                "last_emcy": f"0x{emcy[-1][1]:04X}" if emcy else None,
+                **self._counters.get(drive.id, {}),
+            })
+        return {"interface": self.config.interface, "channel": self.config.channel,
+                "running": self.running, "time_mode": self.time_mode, "period_s": self.period_s,
+                "window": self.window, "nodes": nodes}
+
+    def close(self) -> None:
+        """Stop the reader thread and shut the bus down (drives are left as they are)."""
+        self._forget_drives()
+        self.network.disconnect()
+
+    def __enter__(self) -> Master:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _raw_targets(drive: Drive, values: np.ndarray) -> list[int]:
+    scaling, mode = drive.config.scaling, drive.config.mode
+    return [scaling.target_raw(mode, float(v)) for v in values]

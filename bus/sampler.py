@@ -1,0 +1,204 @@
+"""The SYNC-driven sampler: TPDOs of all drives aligned by SYNC, in preallocated arrays.
+
+Each SYNC opens a window; the TPDOs a drive sends in reply fill its slot of that window.
+A TPDO that does not come is counted as lost (its values stay NaN, never filled in); a
+second copy of the same TPDO in one window is counted as a duplicate and ignored — and if
+the window before lacked that TPDO, the first copy may have been its late answer, so the
+sample is dropped as well (counted late); a TPDO that arrives while no window is open
+(after the run's last window closed) is counted as late. Raw values are converted to SI units with each drive's :class:`~bus.eds.Scaling`.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bus import cia402
+from bus.eds import Scaling
+from bus.pdo import Layout
+
+#: Process data objects the sampler understands, and the field each fills.
+FIELDS = {cia402.POSITION_ACTUAL: "position_rad", cia402.CURRENT_ACTUAL: "current_A",
+          cia402.VELOCITY_ACTUAL: "velocity_rad_s", cia402.VOLTAGE_ACTUAL: "voltage_V",
+          cia402.STATUSWORD: "statusword"}
+INT32_SPAN = 1 << 32
+
+
+@dataclass
+class DriveSamples:
+    """Samples of one drive, SI units; NaN where a TPDO was lost."""
+
+    node_id: int
+    columns: dict[str, np.ndarray]
+    received: np.ndarray  # (pdos, samples) bool
+    lost: int = 0
+    duplicates: int = 0
+    late: int = 0
+
+    @property
+    def valid(self) -> np.ndarray:
+        """True for the samples whose every TPDO arrived."""
+        return np.all(self.received, axis=0)
+
+
+@dataclass
+class Samples:
+    """What a run recorded: SYNC-aligned samples of every drive.
+
+    Attributes
+    ----------
+    period_s : float
+        SYNC period, s (stand time of sample k is ``k·period_s``).
+    count : int
+        Number of SYNC windows recorded (the run's length when it ran to its end).
+    wall_s : ndarray
+        ``time.monotonic()`` when each SYNC was sent, s.
+    sync_counter : ndarray
+        SYNC counter value (0x1019) each SYNC carried (0 when the counter is off).
+    drives : list of DriveSamples
+    aborted : str or None
+        Why the run stopped early, or None.
+    """
+
+    period_s: float
+    count: int
+    wall_s: np.ndarray
+    sync_counter: np.ndarray
+    drives: list[DriveSamples]
+    aborted: str | None = None
+    meta: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def lost(self) -> dict[int, int]:
+        return {d.node_id: d.lost for d in self.drives}
+
+    @property
+    def complete(self) -> bool:
+        """True when every window of every drive got all its TPDOs and the run ended normally."""
+        return self.aborted is None and all(d.lost == 0 for d in self.drives)
+
+    def time_s(self) -> np.ndarray:
+        return np.arange(self.count) * self.period_s
+
+
+class Sampler:
+    """Collects TPDOs into preallocated buffers.
+
+    Parameters
+    ----------
+    tpdos : dict
+        COB-ID → (drive number, PDO number within the drive, layout) of every TPDO expected.
+    node_ids : sequence of int
+        The drives, in drive-number order.
+    scalings : sequence of Scaling
+        Their units.
+    samples : int
+        Number of SYNC windows to hold.
+    period_s : float
+        SYNC period, s.
+    """
+
+    def __init__(self, tpdos: dict[int, tuple[int, int, Layout]], node_ids: Sequence[int],
+                 scalings: Sequence[Scaling], samples: int, period_s: float) -> None:
+        self.tpdos = tpdos
+        self.scalings = list(scalings)
+        self.samples = samples
+        self.period_s = period_s
+        pdos = [sum(1 for d, _, _ in tpdos.values() if d == n) for n in range(len(node_ids))]
+        self.raw: list[dict[str, np.ndarray]] = []
+        for n in range(len(node_ids)):
+            names = {FIELDS[i] for c in tpdos.values() if c[0] == n for i in c[2].indices if i in FIELDS}
+            self.raw.append({name: np.full(samples, np.nan) for name in sorted(names)})
+        self.received = [np.zeros((p, samples), dtype=bool) for p in pdos]
+        self.duplicates = [0] * len(node_ids)
+        self.late = [0] * len(node_ids)
+        self.node_ids = list(node_ids)
+        self.expected = sum(pdos)
+        self.wall_s = np.zeros(samples)
+        self.sync_counter = np.zeros(samples, dtype=np.int16)
+        self.window = -1
+        self._arrived = 0
+        self.complete = threading.Event()
+        self._lock = threading.Lock()
+        self._plan = {cob: (d, p, layout, [FIELDS.get(i) for i in layout.indices])
+                      for cob, (d, p, layout) in tpdos.items()}
+
+    def open(self, k: int, wall_s: float, counter: int) -> None:
+        """Open window ``k`` (just before SYNC ``k`` is sent)."""
+        with self._lock:
+            self.window = k
+            self._arrived = 0
+            self.complete.clear()
+            self.wall_s[k] = wall_s
+            self.sync_counter[k] = counter
+
+    def close(self) -> None:
+        """No window is open any more; TPDOs arriving now are late."""
+        with self._lock:
+            self.window = -1
+
+    def on_tpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """Subscriber of every expected TPDO COB-ID (called from the bus reader thread)."""
+        d, p, layout, names = self._plan[can_id]
+        with self._lock:
+            k = self.window
+            if k < 0:
+                self.late[d] += 1
+                return
+            received = self.received[d]
+            if received[p, k]:
+                self.duplicates[d] += 1
+                if k > 0 and not received[p, k - 1]:
+                    # The first frame of this window may have been the late answer to the
+                    # last SYNC: neither can be told apart, so this sample is not trusted.
+                    received[p, k] = False
+                    self.late[d] += 1
+                return
+            received[p, k] = True
+            raw = self.raw[d]
+            for name, value in zip(names, layout.unpack(data), strict=True):
+                if name is not None:
+                    raw[name][k] = value
+            self._arrived += 1
+            if self._arrived == self.expected:
+                self.complete.set()
+
+    def result(self, count: int, aborted: str | None = None) -> Samples:
+        """The first ``count`` windows in SI units."""
+        drives = []
+        for n, node_id in enumerate(self.node_ids):
+            s = self.scalings[n]
+            raw = {name: values[:count] for name, values in self.raw[n].items()}
+            columns: dict[str, np.ndarray] = {}
+            for name, values in raw.items():
+                if name == "position_rad":
+                    columns[name] = _unwrap_int32(values) * s.rad_per_count
+                elif name == "current_A":
+                    columns[name] = values * s.amp_per_unit
+                elif name == "velocity_rad_s":
+                    columns[name] = values * s.velocity_unit_rad_s
+                elif name == "voltage_V":
+                    columns[name] = values * s.voltage_unit_V
+                else:
+                    columns[name] = values.copy()
+            received = self.received[n][:, :count].copy()
+            drives.append(DriveSamples(node_id, columns, received,
+                                       lost=int(np.sum(~received)),
+                                       duplicates=self.duplicates[n], late=self.late[n]))
+        return Samples(self.period_s, count, self.wall_s[:count].copy(),
+                       self.sync_counter[:count].copy(), drives, aborted)
+
+
+def _unwrap_int32(values: np.ndarray) -> np.ndarray:
+    """Undo int32 wrap-around of a position counter (NaN entries stay NaN)."""
+    out = values.copy()
+    ok = np.isfinite(values)
+    if ok.sum() > 1:
+        v = values[ok]
+        steps = np.diff(v)
+        steps = (steps + INT32_SPAN // 2) % INT32_SPAN - INT32_SPAN // 2
+        out[ok] = v[0] + np.concatenate(([0.0], np.cumsum(steps)))
+    return out

@@ -1,0 +1,176 @@
+"""Simulated stand: CiA 402 drive nodes with stand physics, on a CAN bus.
+
+One motor profile gives one node on a :class:`~stand.physics.plant.MotorPlant`; a stand
+profile gives two nodes (input and output motor) sharing one
+:class:`~stand.physics.reducer.ReducerPlant`, which advances once per SYNC. On SYNC every
+node samples (and sends its TPDOs when OPERATIONAL), then applies its latest target, then
+the plant advances one communication cycle period (0x1006, written by the master), so the
+drives keep lockstep with the SYNCs. Run it in-process or in its own process::
+
+    python -m bus.simstand --interface socketcan --channel vcan0 --profile crouzet_82800502
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import struct
+import sys
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from bus.adapters import BusConfig, connect_network
+from bus.cia402 import ADDED_INERTIA
+from bus.drive_node import Plant, SimDriveNode
+from bus.eds import FINE_COUNTS_PER_REV, Scaling
+from stand.errors import NotFoundError
+from stand.physics.plant import MotorPlant
+from stand.physics.reducer import ReducerPlant
+from stand.profiles import MotorProfile, StandProfile, load_motor, load_stand, resolve
+
+log = logging.getLogger(__name__)
+
+SYNC_COB_ID = 0x080
+#: Over-current threshold as a multiple of the drive's current limit.
+OVER_CURRENT_FACTOR = 1.5
+
+
+def scaling_for(profile: MotorProfile) -> Scaling:
+    """Units of the raw process data of a drive running ``profile``'s motor."""
+    return Scaling(counts_per_rev=profile.sensor_params().counts_per_rev or FINE_COUNTS_PER_REV,
+                   rated_current_A=profile.drive.rated_current_A)
+
+
+class SimStand:
+    """The drives of a motor or stand profile, simulated on ``config``'s bus.
+
+    Parameters
+    ----------
+    profile : str
+        Motor or stand profile (name or path).
+    config : BusConfig
+        The bus to attach to.
+    seed : int or None
+        Seed of the sensor noise; the plant is rebuilt with it on every NMT reset node.
+    effects : dict or None
+        Effects replacing the profile's (``Effects.from_mapping`` form); None keeps them.
+    eds : path or None
+        EDS of the nodes.
+    """
+
+    def __init__(self, profile: str, config: BusConfig | None = None, seed: int | None = None,
+                 effects: dict[str, dict[str, float]] | None = None,
+                 eds: str | Path | None = None) -> None:
+        self.seed = seed
+        self.added_inertia = 0.0
+        self.stand: StandProfile | None
+        try:
+            resolve(profile, "stands")
+            self.stand = load_stand(profile)
+            self.motors = [load_motor(self.stand.motor_in), load_motor(self.stand.motor_out)]
+            node_ids = [self.stand.node_in, self.stand.node_out]
+            self.period_s = self.stand.sample_period_s
+        except NotFoundError:
+            self.stand = None
+            self.motors = [load_motor(profile)]
+            node_ids = [self.motors[0].drive.node_id]
+            self.period_s = self.motors[0].sample_period_s
+        self.effects = effects
+        self.plant: Plant = self._build_plant()
+        self.network = connect_network(config or BusConfig())
+        self.nodes = [
+            SimDriveNode(self.network, node_id, self._current_plant, port, scaling_for(motor),
+                         OVER_CURRENT_FACTOR * motor.drive.current_limit_A, eds,
+                         on_reset=self._on_reset, on_write=self._on_write)
+            for port, (node_id, motor) in enumerate(zip(node_ids, self.motors, strict=True))
+        ]
+        self.syncs = 0
+        self.network.subscribe(SYNC_COB_ID, self._on_sync)
+        for node in self.nodes:
+            node.boot()
+
+    def _current_plant(self) -> Plant:
+        return self.plant
+
+    def _build_plant(self) -> Plant:
+        from stand.physics.effects import Effects
+
+        def effects_of(motor: MotorProfile) -> Effects:
+            if self.effects is None:
+                return motor.effect_set()
+            return Effects.from_mapping(self.effects, "simstand effects")
+
+        if self.stand is None:
+            m = self.motors[0]
+            return MotorPlant(m.motor_params(), m.drive_params(), m.sensor_params(), effects_of(m),
+                              added_inertia=self.added_inertia, seed=self.seed)
+        m_in, m_out = self.motors
+        return ReducerPlant(m_in.motor_params(), m_out.motor_params(), self.stand.reducer_params(),
+                            m_in.drive_params("speed"), m_out.drive_params("current"),
+                            m_in.sensor_params(), effects_of(m_in), m_out.effect_set(), seed=self.seed)
+
+    def _on_reset(self, node: SimDriveNode) -> None:
+        if node is self.nodes[0]:
+            self.plant = self._build_plant()
+
+    def _on_write(self, node: SimDriveNode, index: int, value: Any) -> None:
+        if index == ADDED_INERTIA and node is self.nodes[0]:
+            self.added_inertia = float(value)
+            self.plant = self._build_plant()
+            log.info("simulated stand: added inertia %.4g kg·m², plant rebuilt", value)
+
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        cycle_us = struct.unpack("<I", self.nodes[0].node.get_data(0x1006, 0))[0]
+        dt_s = cycle_us * 1e-6 if cycle_us else self.period_s
+        for node in self.nodes:
+            node.sample(dt_s)
+        for node in self.nodes:
+            node.actuate()
+        self.plant.advance(dt_s)
+        self.syncs += 1
+
+    def node(self, node_id: int) -> SimDriveNode:
+        for node in self.nodes:
+            if node.id == node_id:
+                return node
+        raise NotFoundError(f"no simulated node {node_id}; nodes: {[n.id for n in self.nodes]}")
+
+    def close(self) -> None:
+        """Stop heartbeats and the notifier, and shut the bus down."""
+        for node in self.nodes:
+            node.close()
+        self.network.unsubscribe(SYNC_COB_ID, self._on_sync)
+        self.network.disconnect()
+
+    def __enter__(self) -> SimStand:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m bus.simstand``: serve the simulated drives until SIGINT/SIGTERM."""
+    parser = argparse.ArgumentParser(prog="python -m bus.simstand", description=__doc__.split("\n")[0])
+    parser.add_argument("--interface", default="virtual")
+    parser.add_argument("--channel", default="motorstand")
+    parser.add_argument("--profile", required=True, help="motor or stand profile")
+    parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--eds", default=None)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(message)s")
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    signal.signal(signal.SIGINT, lambda *_: done.set())
+    with SimStand(args.profile, BusConfig(args.interface, args.channel), args.seed, eds=args.eds) as sim:
+        log.info("simulated drives %s on %s:%s", [n.id for n in sim.nodes], args.interface, args.channel)
+        print("ready", flush=True)
+        done.wait()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

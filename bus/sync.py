@@ -1,0 +1,90 @@
+"""SYNC producer (CiA 301 §7.2.5) with the counter of 0x1019, and the two time modes.
+
+- ``lockstep``: the next SYNC goes out as soon as every drive answered the last one, and
+  simulated drives advance exactly one period per SYNC: deterministic, as fast as the bus.
+- ``realtime``: SYNCs follow a wall-clock period (deadlines on ``time.monotonic()``; the
+  last stretch before a deadline is spun, not slept, to keep the jitter low).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from stand.errors import InputError
+
+SYNC_COB_ID = 0x080
+#: SYNC counter overflow value written to 0x1019 (1..240; 0 = no counter).
+SYNC_COUNTER_OVERFLOW = 240
+#: Below this much time to a deadline the clock spins instead of sleeping, s.
+SPIN_S = 1.5e-3
+TIME_MODES = ("lockstep", "realtime")
+
+
+def check_time_mode(mode: str) -> str:
+    if mode not in TIME_MODES:
+        raise InputError(f"time_mode must be 'lockstep' or 'realtime', not {mode!r}")
+    return mode
+
+
+class SyncCounter:
+    """The counter byte of SYNC frames: 1, 2, ..., overflow, 1, ... (none when 0)."""
+
+    def __init__(self, overflow: int = SYNC_COUNTER_OVERFLOW) -> None:
+        if not 0 <= overflow <= 240 or overflow == 1:
+            raise InputError(f"SYNC counter overflow must be 0 or 2..240, got {overflow}")
+        self.overflow = overflow
+        self.value = 0
+
+    def next(self) -> tuple[int, bytes]:
+        """The next counter value and the SYNC frame's data."""
+        if not self.overflow:
+            return 0, b""
+        self.value = self.value % self.overflow + 1
+        return self.value, bytes([self.value])
+
+
+class RealtimeClock:
+    """Wall-clock deadlines every ``period_s`` seconds from the first :meth:`wait`."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self.start: float | None = None
+        self.k = 0
+
+    def wait(self) -> float:
+        """Wait for the next deadline; return ``time.monotonic()`` when it was reached."""
+        now = time.monotonic()
+        if self.start is None:
+            self.start = now
+            self.k = 1
+            return now
+        deadline = self.start + self.k * self.period_s
+        self.k += 1
+        remaining = deadline - now
+        if remaining > SPIN_S:
+            time.sleep(remaining - SPIN_S)
+        while (now := time.monotonic()) < deadline:
+            pass
+        return now
+
+
+@dataclass(frozen=True)
+class Jitter:
+    """SYNC period jitter: deviation of the intervals between SYNCs from the period, s."""
+
+    period_s: float
+    p50_s: float
+    p99_s: float
+    max_s: float
+    samples: int
+
+    @classmethod
+    def of(cls, send_times_s: np.ndarray, period_s: float) -> Jitter:
+        deviation = np.abs(np.diff(send_times_s) - period_s)
+        if deviation.size == 0:
+            return cls(period_s, 0.0, 0.0, 0.0, 0)
+        return cls(period_s, float(np.percentile(deviation, 50)), float(np.percentile(deviation, 99)),
+                   float(deviation.max()), int(deviation.size))

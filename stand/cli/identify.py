@@ -1,0 +1,37 @@
+"""``stand identify RUN.csv``: Q-matrix identification of one single-motor run (seed 000 eq. 10)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from stand.ident.derivatives import DEFAULT_HALF_WIDTH, METHODS
+from stand.ident.identify import identify_run
+from stand.jsonable import to_jsonable
+from stand.runfile import read_run
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", help="single-motor run file (CSV, CONTRACT §1)")
+    parser.add_argument("--method", choices=METHODS, default="default",
+                        help="derivatives: 'default' kernel filtering, 'paper' forward Euler "
+                             "(seed 000 §4.1)")
+    parser.add_argument("--no-load-current", type=float, default=0.0, metavar="A",
+                        help="no-load current subtracted from the measured current (§5.1), A")
+    parser.add_argument("--half-width", type=int, default=DEFAULT_HALF_WIDTH,
+                        help="half width of the default method's kernel, samples")
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    result = identify_run(read_run(args.run, "single"), args.method, args.no_load_current,
+                          args.half_width)
+    return {**to_jsonable(result), "source": args.run}
+
+
+def summarize(result: dict[str, Any]) -> str:
+    return (
+        f"{result['source']}: Kt/J = {result['Kt_over_J']:.5g} ± {result['Kt_over_J_se']:.2g} "
+        f"rad/(s²·A), D/J = {result['D_over_J']:.4g} 1/s, C/J = {result['C_over_J']:.4g} 1/s²; "
+        f"fit {result['fit_percent']:.1f} %, condition number {result['condition_number']:.3g}, "
+        f"{result['samples']} samples ({result['method']} method)"
+    )

@@ -1,0 +1,16 @@
+"""Sim-to-real gap diagnosis (issue 5, CONTRACT §3).
+
+``diagnose(train, holdout)`` identifies the nominal model of seed 000 on TRAIN, measures
+its gap on HOLDOUT, says where it lies, scores every effect of the vocabulary as a model
+extension, and names the one (or the few) that explain the gap, or ``none``.
+
+Modules: :mod:`.signals` (derived signals), :mod:`.model` (regressors, fit, simulation),
+:mod:`.candidates` (effects as extensions), :mod:`.significance` (noise-aware test),
+:mod:`.where` (residual analysis), :mod:`.engine` (the procedure), :mod:`.report`
+(result objects), :mod:`.plots` (figures).
+"""
+
+from stand.diagnose.engine import diagnose
+from stand.diagnose.report import Diagnosis, EffectScore, Where
+
+__all__ = ["Diagnosis", "EffectScore", "Where", "diagnose"]

@@ -1,0 +1,245 @@
+"""Blind benchmark of the diagnosis on simulated stands with withheld effects.
+
+Each case draws a motor, a drive mode and excitation, sensors, and zero, one or two
+effects of the vocabulary over wide ranges (:func:`draw_case`); simulates a TRAIN and a
+HOLDOUT run with the stand simulator (:mod:`stand.physics`); writes both as CSV files
+(CONTRACT §1) and reads them back, so the diagnosis sees only what a user has; and
+keeps the answer key apart until the verdict is in (:func:`run_case`).
+:func:`summarize_cases` turns the cases into the figures of issue 5: confusion matrix,
+top-1 accuracy, false alarms on effect-free cases, median shrink of the true effect.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stand.diagnose.candidates import EFFECTS
+from stand.diagnose.engine import diagnose
+from stand.excitation import excitation
+from stand.physics.effects import Effects
+from stand.physics.parts import DriveParams, MotorParams, SensorParams
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
+from stand.runfile import read_run, write_run
+
+#: Length of each of TRAIN and HOLDOUT, s.
+RUN_DURATION_S = 10.0
+#: Share of effect-free cases and of two-effect cases (the rest have one effect).
+NONE_SHARE = 0.2
+PAIR_SHARE = 0.15
+#: Relative effect strength range (of the run's typical drive torque): barely visible to strong.
+STRENGTH_RANGE = (0.03, 0.3)
+#: Encoder resolutions drawn, lines per revolution (4x quadrature).
+ENCODER_LINES = (500, 1000, 1024, 2000, 2500, 4096, 5000)
+
+
+def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
+    return float(math.exp(rng.uniform(math.log(low), math.log(high))))
+
+
+@dataclass
+class Case:
+    """One drawn stand and its answer key."""
+
+    index: int
+    seed: int
+    motor: MotorParams
+    drive: DriveParams
+    sensors: SensorParams
+    effects: dict[str, dict[str, float]]
+    mode: str
+    kind: str
+    level: float
+    amplitude: float
+    hold: int
+    dt_s: float
+    truth: list[str] = field(default_factory=list)
+
+
+def draw_case(index: int, seed: int) -> Case:
+    """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible)."""
+    rng = np.random.default_rng([seed, index])
+    J = _log_uniform(rng, 5e-6, 5e-4)
+    Kt = _log_uniform(rng, 0.02, 0.2)
+    tau = _log_uniform(rng, 0.05, 2.0)
+    motor = MotorParams(R=_log_uniform(rng, 0.5, 5.0), L=_log_uniform(rng, 2e-4, 3e-3),
+                        Kt=Kt, J=J, D=J / tau)
+    dt = float(rng.uniform(1e-3, 5e-3))
+    mode = "current" if rng.random() < 0.6 else "speed"
+    kind = str(rng.choice(["prbs", "noise", "sine"]))
+    omega_ref = min(_log_uniform(rng, 20.0, 300.0), 0.4 * 48.0 / Kt)
+    switch_s = _log_uniform(rng, 0.02, 0.3)
+    hold = max(1, int(round(switch_s / dt)))
+    if kind == "sine":  # excitation's sine runs at 0.1 / (hold·dt) Hz: 0.3 .. 3 Hz
+        hold = max(1, int(round(0.1 / (_log_uniform(rng, 0.3, 3.0) * dt))))
+        switch_s = 0.25 / (0.1 / (hold * dt))
+    current_ref = J * omega_ref / (Kt * min(tau, switch_s)) + motor.D * omega_ref / Kt
+    torque_ref = Kt * current_ref
+    bandwidth_hz = _log_uniform(rng, 10.0, 40.0)
+    kp = 2 * math.pi * bandwidth_hz * J / Kt
+    drive = DriveParams(mode=mode, supply_V=48.0, current_limit_A=20.0 * current_ref,  # type: ignore[arg-type]
+                        current_tau_s=2e-4, speed_kp=kp, speed_ki=kp * 2 * math.pi * bandwidth_hz / 5)
+    lines = int(rng.choice(ENCODER_LINES))
+    sensors = SensorParams(encoder_lines=lines,
+                           current_noise_A=_log_uniform(rng, 0.003, 0.03) * current_ref)
+    u = rng.random()
+    count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
+    names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
+    truth = [EFFECTS[k] for k in names]
+    if {"coulomb_friction", "stribeck_friction"} <= set(truth):
+        truth.remove("coulomb_friction")  # Stribeck already holds a Coulomb level
+    effects = {name: _draw_effect(name, rng, torque_ref, current_ref, omega_ref, J, lines, dt)
+               for name in truth}
+    if mode == "current":
+        level, amplitude = 0.0, current_ref
+    else:
+        level, amplitude = 0.0, omega_ref
+    return Case(index, seed, motor, drive, sensors, effects, mode, kind, level, amplitude,
+                hold, dt, truth or ["none"])
+
+
+def _draw_effect(name: str, rng: np.random.Generator, torque_ref: float, current_ref: float,
+                 omega_ref: float, J: float, lines: int, dt: float) -> dict[str, float]:
+    strength = _log_uniform(rng, *STRENGTH_RANGE)
+    max_order = max(2, min(40, 4 * lines // 16))
+    if name == "coulomb_friction":
+        return {"Tc": strength * torque_ref}
+    if name == "stribeck_friction":
+        Ts = strength * torque_ref
+        return {"Tc": Ts * rng.uniform(0.2, 0.6), "Ts": Ts,
+                "ws": omega_ref * _log_uniform(rng, 0.03, 0.3)}
+    if name == "cogging":
+        return {"Tcog": strength * torque_ref, "N": int(rng.integers(2, max_order + 1)),
+                "phi": rng.uniform(0, 2 * math.pi)}
+    if name == "current_offset":
+        return {"i0": strength * current_ref * float(rng.choice([-1.0, 1.0]))}
+    if name == "delay":
+        return {"k": int(rng.integers(1, 5))}
+    if name == "backlash":
+        return {"gap": _log_uniform(rng, 0.002, 0.05), "J_load": J * _log_uniform(rng, 0.3, 3.0)}
+    if name == "torque_ripple":
+        return {"eps": _log_uniform(rng, 0.03, 0.3), "N": int(rng.integers(2, max_order + 1)),
+                "phi": rng.uniform(0, 2 * math.pi)}
+    raise ValueError(name)
+
+
+def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) -> dict[str, np.ndarray]:
+    """Columns of the TRAIN (``which=0``) or HOLDOUT (1) run of ``case``."""
+    seed = case.seed * 100_003 + case.index * 2 + which
+    plant = MotorPlant(case.motor, case.drive, case.sensors, Effects.from_mapping(case.effects),
+                       seed=seed)
+    samples = int(round(duration_s / case.dt_s))
+    command = excitation(case.kind, samples, case.dt_s, case.level, case.amplitude, case.hold,
+                         seed=seed)
+    run = simulate_motor(plant, case.mode, command, case.dt_s)
+    return {k: run[k] for k in ("time_s", "current_A", "position_rad")}
+
+
+def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[str, Any]:
+    """Draw, simulate, write, read back and diagnose one case blind; then score it."""
+    case = draw_case(index, seed)
+    with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
+        paths = [write_run(Path(folder) / f"{name}.csv", simulate_case(case, k, duration_s))
+                 for k, name in enumerate(("train", "holdout"))]
+        train, holdout = (read_run(p, "single") for p in paths)
+        start = time.perf_counter()
+        result = diagnose(train, holdout)
+        elapsed = time.perf_counter() - start
+    predicted = result.verdict.split("+")
+    gaps = {e.effect: e for e in result.effects}
+    true_shrink = max((gaps[t].shrink for t in case.truth if t in gaps), default=None)
+    return {
+        "index": index, "truth": case.truth, "verdict": result.verdict,
+        "top1": predicted[0] in case.truth,
+        "exact": sorted(predicted) == sorted(case.truth),
+        "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
+        "true_shrink": true_shrink, "seconds": elapsed, "samples": len(holdout),
+        "mode": case.mode, "kind": case.kind, "dt_s": case.dt_s, "effects": case.effects,
+    }
+
+
+def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Figures of the benchmark: accuracy, false alarms, shrink, confusion matrix."""
+    labels = ["none", *EFFECTS]
+    confusion: dict[str, Counter[str]] = {label: Counter() for label in labels}
+    for row in rows:
+        confusion[row["truth"][0] if len(row["truth"]) == 1 else "+".join(row["truth"])
+                  if False else row["truth"][0]][row["verdict"].split("+")[0]] += 1
+    none_rows = [r for r in rows if r["truth"] == ["none"]]
+    effect_rows = [r for r in rows if r["truth"] != ["none"]]
+    shrinks = [r["true_shrink"] for r in effect_rows if r["true_shrink"] is not None]
+    return {
+        "cases": len(rows),
+        "top1_accuracy": float(np.mean([r["top1"] for r in rows])) if rows else None,
+        "exact_accuracy": float(np.mean([r["exact"] for r in rows])) if rows else None,
+        "none_cases": len(none_rows),
+        "false_alarm_rate": (float(np.mean([r["verdict"] != "none" for r in none_rows]))
+                             if none_rows else None),
+        "missed_rate": (float(np.mean([r["verdict"] == "none" for r in effect_rows]))
+                        if effect_rows else None),
+        "median_true_shrink": float(np.median(shrinks)) if shrinks else None,
+        "median_seconds": float(np.median([r["seconds"] for r in rows])) if rows else None,
+        "confusion": {t: dict(c) for t, c in confusion.items()},
+        "labels": labels,
+    }
+
+
+def confusion_table(summary: dict[str, Any]) -> str:
+    """The confusion matrix as text (rows: truth, first effect; columns: verdict, first)."""
+    labels = summary["labels"]
+    short = {name: name.replace("_friction", "").replace("current_", "")[:8] for name in labels}
+    head = "truth \\ verdict".ljust(18) + "".join(short[c].rjust(9) for c in labels)
+    lines = [head]
+    for t in labels:
+        row = summary["confusion"].get(t, {})
+        lines.append(t.ljust(18) + "".join(str(row.get(c, 0)).rjust(9) for c in labels))
+    return "\n".join(lines)
+
+
+def _run_case_args(args: tuple[int, int, float]) -> dict[str, Any]:
+    return run_case(*args)
+
+
+def run_benchmark(cases: int, seed: int, workers: int = 2,
+                  duration_s: float = RUN_DURATION_S) -> list[dict[str, Any]]:
+    """Run ``cases`` blind cases with ``workers`` processes; rows in case order."""
+    jobs = [(index, seed, duration_s) for index in range(cases)]
+    if workers <= 1:
+        return [_run_case_args(job) for job in jobs]
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        return list(pool.imap(_run_case_args, jobs, chunksize=1))
+
+
+def timing_case(duration_s: float = 20.0, dt_s: float = 1e-3, seed: int = 0) -> dict[str, float]:
+    """Wall time of reading and diagnosing ``duration_s`` of data at ``1/dt_s`` Hz.
+
+    The stand: a current-mode PRBS run with Coulomb friction, 2500-line encoder.
+    """
+    motor = MotorParams(R=2.0, L=1e-3, Kt=0.05, J=2e-5, D=4e-5)
+    sensors = SensorParams(encoder_lines=2500, current_noise_A=0.01)
+    samples = int(round(duration_s / dt_s))
+    with tempfile.TemporaryDirectory(prefix="diagnose-timing-") as folder:
+        paths = []
+        for k in range(2):
+            plant = MotorPlant(motor, DriveParams(mode="current"), sensors,
+                               Effects.from_mapping({"coulomb_friction": {"Tc": 0.004}}),
+                               seed=seed + k)
+            command = excitation("prbs", samples, dt_s, 0.0, 0.5, 50, seed=seed + k)
+            run = simulate_motor(plant, "current", command, dt_s)
+            paths.append(write_run(Path(folder) / f"run{k}.csv",
+                                   {c: run[c] for c in ("time_s", "current_A", "position_rad")}))
+        start = time.perf_counter()
+        train, holdout = (read_run(p, "single") for p in paths)
+        diagnose(train, holdout)
+        elapsed = time.perf_counter() - start
+    return {"duration_s": duration_s, "rate_hz": 1.0 / dt_s, "seconds": elapsed}

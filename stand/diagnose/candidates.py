@@ -1,0 +1,130 @@
+"""The candidate effects of CONTRACT §3 as model extensions, and their small searches.
+
+Each candidate adds regressors to a base model (:class:`~stand.diagnose.model.ModelSpec`).
+Most are linear in their parameters; the delay ``k``, the order ``N`` of cogging and
+torque ripple, the Stribeck velocity and the backlash gap are picked on TRAIN by the
+smallest equation-error RMS over a grid (the Q-matrix solver, batched where the grid
+keeps the number of columns).
+
+Parameters come back relative to the torque constant (the current-driven model only
+identifies torques per ``Kt``): ``Tc_over_Kt_A`` etc., in amperes of current that make
+the same torque; with ``kt`` given also in N·m.
+"""
+
+from __future__ import annotations
+
+import math
+import numpy as np
+
+from stand.diagnose.model import FittedModel, ModelSpec, fit_residual_batch
+from stand.diagnose.signals import Signals
+
+#: Effect names in vocabulary order (``none`` excluded).
+EFFECTS: tuple[str, ...] = ("coulomb_friction", "stribeck_friction", "cogging",
+                            "current_offset", "delay", "backlash", "torque_ripple")
+#: Largest current delay searched, samples.
+MAX_DELAY_SAMPLES = 10
+#: Largest cogging / ripple order searched, cycles per revolution.
+MAX_ORDER = 60
+#: Finest position order searched relative to the encoder: at least this many counts a cycle.
+MIN_COUNTS_PER_CYCLE = 16
+#: Grid size of the Stribeck velocity and backlash gap searches.
+GRID_POINTS = 12
+#: Range of backlash half-gaps searched, rad (from two encoder counts at least).
+MIN_GAP_RAD = 1e-4
+MAX_GAP_RAD = 0.3
+
+
+def _best(specs: list[ModelSpec], train: Signals, negative: str | None = None) -> ModelSpec:
+    """The spec of smallest equation-error RMS on ``train``; with ``negative``, only among
+    fits whose coefficient of that column is negative (the physical sign)."""
+    rms, coef = fit_residual_batch(specs, train)
+    if negative is not None:
+        column = specs[0].names().index(negative)
+        rms = np.where(coef[:, column] < 0, rms, np.inf)
+        if not np.isfinite(rms).any():
+            return specs[0]
+    return specs[int(np.argmin(rms))]
+
+
+def _orders(train: Signals) -> list[int]:
+    top = MAX_ORDER
+    if train.quant_rad > 0:
+        counts = 2 * math.pi / train.quant_rad
+        top = max(1, min(top, int(counts // MIN_COUNTS_PER_CYCLE)))
+    return list(range(1, top + 1))
+
+
+def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
+    """The model ``base`` plus ``effect``, its hyper-parameters picked on ``train``."""
+    if effect == "coulomb_friction":
+        return base.merged(ModelSpec(coulomb=True))
+    if effect == "current_offset":
+        return base.merged(ModelSpec(offset=True))
+    if effect == "delay":
+        return _best([base.merged(ModelSpec(delay=k)) for k in range(1, MAX_DELAY_SAMPLES + 1)],
+                     train)
+    if effect == "cogging":
+        return _best([base.merged(ModelSpec(cogging_N=n)) for n in _orders(train)], train)
+    if effect == "torque_ripple":
+        return _best([base.merged(ModelSpec(ripple_N=n)) for n in _orders(train)], train)
+    top = float(np.quantile(np.abs(train.omega_f), 0.95))
+    if effect == "stribeck_friction":
+        grid = top * np.geomspace(0.01, 0.5, GRID_POINTS)
+        return _best([base.merged(ModelSpec(stribeck_ws=float(w))) for w in grid], train)
+    if effect == "backlash":
+        low = max(2 * train.quant_rad, MIN_GAP_RAD)
+        grid = np.geomspace(low, max(MAX_GAP_RAD, 4 * low), GRID_POINTS)
+        return _best([base.merged(ModelSpec(backlash_gap=float(g))) for g in grid], train,
+                     negative="load_accel")
+    raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
+
+
+def _torque(value_per_J: float, model: FittedModel, kt: float | None, name: str,
+            out: dict[str, float | int | None]) -> None:
+    """Store a torque given per unit inertia (rad/s²) as ``name_over_Kt_A`` and ``name``."""
+    over_kt = value_per_J / model.coef["current"]
+    out[f"{name}_over_Kt_A"] = over_kt
+    if kt is not None:
+        out[name] = over_kt * kt
+
+
+def _phase(model: FittedModel, prefix: str) -> tuple[float, float]:
+    s, c = model.coef[f"{prefix}_sin"], model.coef[f"{prefix}_cos"]
+    return math.hypot(s, c), math.atan2(c, s)
+
+
+def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float | int | None]:
+    """Physical parameters of ``effect`` in the fitted ``model``.
+
+    Torques are reported as ``<name>_over_Kt_A`` (A), and as ``<name>`` in N·m when the
+    torque constant ``kt`` (N·m/A) is known; ``J`` then follows as ``Kt/c_i``.
+    """
+    spec, c = model.spec, model.coef
+    out: dict[str, float | int | None] = {}
+    if effect == "coulomb_friction":
+        _torque(-c["sign"], model, kt, "Tc", out)
+    elif effect == "stribeck_friction":
+        _torque(-c["sign"], model, kt, "Tc", out)
+        _torque(-c["sign"] - c["stribeck"], model, kt, "Ts", out)
+        out["ws"] = spec.stribeck_ws
+    elif effect == "cogging":
+        amplitude, phase = _phase(model, "cog")
+        _torque(amplitude, model, kt, "Tcog", out)
+        out["N"] = spec.cogging_N
+        out["phi"] = math.atan2(-math.sin(phase), -math.cos(phase))  # torque is −Tcog·sin
+    elif effect == "current_offset":
+        out["i0"] = -c["one"] / c["current"]
+    elif effect == "delay":
+        out["k"] = spec.delay
+    elif effect == "backlash":
+        out["gap"] = spec.backlash_gap
+        out["J_load_over_J"] = max(-c["load_accel"], 0.0)
+        if kt is not None:
+            out["J_load"] = out["J_load_over_J"] * kt / c["current"]
+    elif effect == "torque_ripple":
+        amplitude, phase = _phase(model, "rip")
+        out["eps"] = amplitude / c["current"]
+        out["N"] = spec.ripple_N
+        out["phi"] = phase
+    return out

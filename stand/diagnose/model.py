@@ -1,0 +1,399 @@
+"""The nominal model of seed 000 and its extensions: regressors, fit and free-run simulation.
+
+Every model is ``J·θ'' + D·θ' + C·θ = Kt·i + extensions``, written per unit inertia::
+
+    θ'' = c_θ·θ + c_ω·θ' + c_i·i(t + k·Δt) + Σ_j c_j·φ_j(θ, θ', i)
+
+with the states ``x = [θ, θ']`` and the inputs ``u = [i, φ_1, φ_2, ...]`` of the Q-matrix
+solver (:mod:`stand.ident.qmatrix`, seed 000 eq. 10); the extension regressors ``φ_j``
+enter as extra input columns. The fit uses the filtered signals of
+:mod:`stand.diagnose.signals` (equation error); the nonlinear hyper-parameters (delay
+``k``, order ``N``, Stribeck velocity, backlash gap) are fixed by :class:`ModelSpec`.
+
+Simulation (:func:`simulate`) re-anchors to the measured state at the start of every
+segment of ``horizon`` samples: position from the filtered position, velocity from the
+filtered velocity, the load of a backlash model from the kinematic load estimate. Within
+a segment the model runs free, driven only by the measured current (linearly
+interpolated between samples). The same segments are used for every candidate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from stand.diagnose.signals import Signals
+from stand.errors import NotExcitedError
+from stand.ident.qmatrix import QSums, solve
+
+#: Samples dropped at each end of a run in the fit (filter and shift transients).
+EDGE_SAMPLES = 50
+#: Largest product of sub-step and fastest model rate in the simulation.
+MAX_RATE_STEP = 0.1
+#: Most sub-steps per sample in the simulation.
+MAX_SUBSTEPS = 20
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Which extensions a model has (all off: the nominal model of seed 000).
+
+    Attributes
+    ----------
+    delay : int
+        Samples the current lags the encoder (the model uses ``i[n + delay]``).
+    offset : bool
+        A constant torque term (a current-sensor offset ``i0``).
+    coulomb : bool
+        A ``sign(ω)`` friction term.
+    stribeck_ws : float or None
+        Stribeck velocity of a ``sign(ω)·exp(−(ω/ωs)²)`` term, rad/s.
+    cogging_N : int or None
+        Order of ``sin(Nθ)``, ``cos(Nθ)`` torque terms, cycles per revolution.
+    ripple_N : int or None
+        Order of ``i·sin(Nθ)``, ``i·cos(Nθ)`` torque terms.
+    backlash_gap : float or None
+        Half width of a dead zone to a load inertia, rad.
+    input_weight : float
+        How the current between two samples is reconstructed: over the period from
+        sample ``n`` to ``n + 1`` it is ``(1 − w)·i[n] + w·i[n + 1]``. ``0.5`` is the
+        trapezoid (a smooth current); ``1`` a drive that reads, then actuates, with a
+        current loop much faster than the sample period (the current settles at the
+        next sample's value right after each sample). Part of the nominal model's input
+        reconstruction, picked once on TRAIN and shared by every candidate.
+    """
+
+    delay: int = 0
+    offset: bool = False
+    coulomb: bool = False
+    stribeck_ws: float | None = None
+    cogging_N: int | None = None
+    ripple_N: int | None = None
+    backlash_gap: float | None = None
+    input_weight: float = 0.5
+
+    def names(self) -> list[str]:
+        """Names of the input columns ``u`` (``current`` first)."""
+        out = ["current"]
+        if self.offset:
+            out.append("one")
+        if self.coulomb or self.stribeck_ws is not None:
+            out.append("sign")
+        if self.stribeck_ws is not None:
+            out.append("stribeck")
+        if self.cogging_N is not None:
+            out += ["cog_sin", "cog_cos"]
+        if self.ripple_N is not None:
+            out += ["rip_sin", "rip_cos"]
+        if self.backlash_gap is not None:
+            out.append("load_accel")
+        return out
+
+    def merged(self, other: ModelSpec) -> ModelSpec:
+        """A model with the extensions of both."""
+        return ModelSpec(
+            delay=max(self.delay, other.delay), offset=self.offset or other.offset,
+            coulomb=self.coulomb or other.coulomb,
+            stribeck_ws=other.stribeck_ws if other.stribeck_ws is not None else self.stribeck_ws,
+            cogging_N=other.cogging_N if other.cogging_N is not None else self.cogging_N,
+            ripple_N=other.ripple_N if other.ripple_N is not None else self.ripple_N,
+            backlash_gap=(other.backlash_gap if other.backlash_gap is not None
+                          else self.backlash_gap),
+            input_weight=self.input_weight,
+        )
+
+
+@dataclass(frozen=True)
+class FittedModel:
+    """A model identified on one run.
+
+    Attributes
+    ----------
+    spec : ModelSpec
+        Its structure.
+    c_theta, c_omega : float
+        ``−C/J`` (1/s²) and ``−D/J`` (1/s).
+    coef : dict of str to float
+        Coefficient of each input column, in rad/s² per unit of the column
+        (``current``: ``Kt/J``).
+    residual_rms : float
+        RMS equation error on the fitting run, rad/s².
+    condition_number : float
+        Of the scaled regressor matrix.
+    """
+
+    spec: ModelSpec
+    c_theta: float
+    c_omega: float
+    coef: dict[str, float]
+    residual_rms: float
+    condition_number: float
+    samples: int
+
+
+def shifted(values: np.ndarray, k: int) -> np.ndarray:
+    """``values[n + k]`` (the last value repeated past the end)."""
+    if k <= 0:
+        return values
+    return np.concatenate([values[k:], np.repeat(values[-1], k)])
+
+
+def interval_current(current: np.ndarray, weight: float) -> np.ndarray:
+    """Current over the period after each sample, ``(1 − w)·i[n] + w·i[n + 1]``."""
+    following = np.concatenate([current[1:], current[-1:]])
+    return (1.0 - weight) * current + weight * following
+
+
+def sample_current(current: np.ndarray, weight: float) -> np.ndarray:
+    """Current at each sample instant consistent with :func:`interval_current`: the mean
+    of the periods before and after the sample."""
+    after = interval_current(current, weight)
+    before = np.concatenate([after[:1], after[:-1]])
+    return 0.5 * (before + after)
+
+
+def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float,
+                  dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Kinematic estimate of a free load behind a dead zone of ± ``gap`` rad.
+
+    The load coasts at constant speed inside the gap and is carried along (inelastic
+    contact) when the motor reaches either edge. Returns load position (rad) and
+    velocity (rad/s) at each sample.
+    """
+    n = len(theta)
+    theta_l = np.empty(n)
+    omega_l = np.empty(n)
+    tl, wl = float(theta[0]), float(omega[0])
+    th = theta.tolist()
+    om = omega.tolist()
+    for k in range(n):
+        tl += wl * dt_s if k else 0.0
+        twist = th[k] - tl
+        if twist > gap:
+            tl = th[k] - gap
+            wl = om[k]
+        elif twist < -gap:
+            tl = th[k] + gap
+            wl = om[k]
+        theta_l[k] = tl
+        omega_l[k] = wl
+    return theta_l, omega_l
+
+
+def regressors(spec: ModelSpec, sig: Signals) -> dict[str, np.ndarray]:
+    """Unfiltered input columns of ``spec`` on the measured run ``sig``."""
+    theta, omega = sig.theta_f, sig.omega_f
+    current = sample_current(shifted(sig.current, spec.delay), spec.input_weight)
+    cols: dict[str, np.ndarray] = {"current": current}
+    if spec.offset:
+        cols["one"] = np.ones(len(theta))
+    if "sign" in spec.names():
+        cols["sign"] = velocity_sign(omega, sig)
+    if spec.stribeck_ws is not None:
+        cols["stribeck"] = cols["sign"] * np.exp(-((omega / spec.stribeck_ws) ** 2))
+    if spec.cogging_N is not None:
+        cols["cog_sin"] = np.sin(spec.cogging_N * theta)
+        cols["cog_cos"] = np.cos(spec.cogging_N * theta)
+    if spec.ripple_N is not None:
+        cols["rip_sin"] = current * np.sin(spec.ripple_N * theta)
+        cols["rip_cos"] = current * np.cos(spec.ripple_N * theta)
+    if spec.backlash_gap is not None:
+        _, omega_l = load_estimate(theta, omega, spec.backlash_gap, sig.dt_s)
+        cols["load_accel"] = np.gradient(omega_l, sig.dt_s)
+    return cols
+
+
+def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:
+    """``sign(ω)``, zero where ``|ω|`` is below the velocity resolution of the run."""
+    resolution = 2.0 * sig.quant_rad / sig.dt_s * 0.2
+    return np.where(np.abs(omega) > resolution, np.sign(omega), 0.0)
+
+
+def _stack(spec: ModelSpec, sig: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    cols = regressors(spec, sig)
+    u = np.column_stack([cols[name] for name in spec.names()])
+    u_f = sig.filt(u)
+    keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
+    x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
+    xdot = np.column_stack([sig.omega_f, sig.accel_f])[keep]
+    return xdot, x, u_f[keep]
+
+
+def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
+    """Identify the model ``spec`` on ``sig`` with the Q-matrix solver (eq. 10).
+
+    Raises
+    ------
+    NotExcitedError
+        The run does not determine the model.
+    """
+    xdot, x, u = _stack(spec, sig)
+    sums = QSums.zeros(2, u.shape[1]).add(xdot, x, u, sig.dt_s)
+    result = solve(sums)
+    A, B = np.asarray(result.A), np.asarray(result.B)
+    names = spec.names()
+    coef = {name: float(B[1, j]) for j, name in enumerate(names)}
+    if not coef["current"] > 0 and spec == ModelSpec():
+        raise NotExcitedError(
+            f"{sig.source}: the identified gain from current to acceleration is "
+            f"{coef['current']:.3g}, not positive; check the sign of current_A against "
+            "position_rad, or excite the motor more"
+        )
+    return FittedModel(spec=spec, c_theta=float(A[1, 0]), c_omega=float(A[1, 1]), coef=coef,
+                       residual_rms=float(np.asarray(result.residual_rms)[1]),
+                       condition_number=float(result.condition_number),
+                       samples=int(result.samples))
+
+
+def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray, np.ndarray]:
+    """Equation-error RMS on ``sig`` of each of ``specs`` (same column layout), rad/s².
+
+    The specs must have the same number of input columns; they are solved as one batch.
+    Problems that cannot be solved give ``inf``. Also returns the input coefficients,
+    shape (specs, columns), in the order of ``ModelSpec.names``.
+    """
+    stacks = [_stack(spec, sig) for spec in specs]
+    n = min(len(s[1]) for s in stacks)
+    xdot = np.stack([s[0][:n] for s in stacks])
+    x = np.stack([s[1][:n] for s in stacks])
+    u = np.stack([s[2][:n] for s in stacks])
+    sums = QSums.zeros(2, u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
+    result = solve(sums, check=False)
+    rms = np.asarray(result.residual_rms)[:, 1]
+    return np.where(np.isfinite(rms), rms, np.inf), np.asarray(result.B)[:, 1, :]
+
+
+def equation_residual(model: FittedModel, sig: Signals) -> np.ndarray:
+    """Equation error of ``model`` on ``sig`` (filtered signals), rad/s², full length."""
+    cols = regressors(model.spec, sig)
+    u = sig.filt(np.column_stack([cols[name] for name in model.spec.names()]))
+    pred = (model.c_theta * sig.theta_f + model.c_omega * sig.omega_f
+            + u @ np.array([model.coef[name] for name in model.spec.names()]))
+    return np.asarray(sig.accel_f - pred)
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Where the simulation is re-anchored: ``starts`` (sample indices), ``horizon``."""
+
+    starts: np.ndarray
+    horizon: int
+
+    @property
+    def index(self) -> np.ndarray:
+        """Sample indices covered, shape (segments, horizon)."""
+        return self.starts[:, None] + np.arange(self.horizon)[None, :]
+
+
+@dataclass
+class _State:
+    theta: np.ndarray
+    omega: np.ndarray
+    theta_l: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    omega_l: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
+    """Velocity of ``model`` driven by ``sig``'s current, re-anchored per segment.
+
+    Returns
+    -------
+    ndarray, shape (segments, horizon)
+        Simulated velocity at the samples ``seg.index``, rad/s.
+    """
+    spec, c = model.spec, model.coef
+    dt = sig.dt_s
+    current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+    drive = current[seg.index]
+    st = _State(sig.theta_f[seg.starts].copy(), sig.omega_f[seg.starts].copy())
+    gap = spec.backlash_gap
+    ratio = max(-c.get("load_accel", 0.0), 0.0)
+    if gap is not None:
+        tl, wl = load_estimate(sig.theta_f, sig.omega_f, gap, dt)
+        st.theta_l, st.omega_l = tl[seg.starts].copy(), wl[seg.starts].copy()
+    fc = -c.get("sign", 0.0)
+    fs = -c.get("stribeck", 0.0)
+    ws = spec.stribeck_ws or 1.0
+    breakaway = max(fc + fs, 0.0)
+    friction = "sign" in c
+    rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
+               (spec.cogging_N or 0) * float(np.max(np.abs(sig.omega_f))),
+               (spec.ripple_N or 0) * float(np.max(np.abs(sig.omega_f))))
+    n_sub = int(min(MAX_SUBSTEPS, max(1, math.ceil(rate * dt / MAX_RATE_STEP))))
+    h = dt / n_sub
+    out = np.empty(seg.index.shape)
+    for j in range(seg.horizon):
+        out[:, j] = st.omega
+        for _ in range(n_sub):
+            _step(model, st, drive[:, j], h, friction, fc, fs, ws, breakaway, gap, ratio)
+    return out
+
+
+def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: bool,
+          fc: float, fs: float, ws: float, breakaway: float, gap: float | None,
+          ratio: float) -> None:
+    spec, c = model.spec, model.coef
+    theta, omega = st.theta, st.omega
+    a = model.c_theta * theta + model.c_omega * omega + c["current"] * i
+    if spec.offset:
+        a = a + c["one"]
+    if spec.cogging_N is not None:
+        angle = spec.cogging_N * theta
+        a = a + c["cog_sin"] * np.sin(angle) + c["cog_cos"] * np.cos(angle)
+    if spec.ripple_N is not None:
+        angle = spec.ripple_N * theta
+        a = a + i * (c["rip_sin"] * np.sin(angle) + c["rip_cos"] * np.cos(angle))
+    scale: np.ndarray | float = 1.0
+    side = np.zeros_like(theta)
+    if gap is not None:
+        twist = theta - st.theta_l
+        side = np.where(twist >= gap - 1e-12, 1.0, np.where(twist <= -gap + 1e-12, -1.0, 0.0))
+        level = fc + fs * np.exp(-((omega / ws) ** 2)) if friction else 0.0
+        a_motor = a - level * np.sign(omega)
+        side = np.where(side * a_motor > 0, side, 0.0)
+        scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
+    if friction:
+        level = fc + fs * np.exp(-((omega / ws) ** 2))
+        moving = omega != 0.0
+        new = omega + h * scale * (a - level * np.sign(omega))
+        new = np.where(moving & (new * omega < 0), 0.0, new)
+        breaks = np.abs(a) > breakaway
+        start = h * scale * (a - breakaway * np.sign(a))
+        new = np.where(moving, new, np.where(breaks, start, 0.0))
+    else:
+        new = omega + h * scale * a
+    st.theta = theta + 0.5 * h * (omega + new)
+    st.omega = new
+    if gap is not None:
+        carried = side != 0
+        free_l = st.theta_l + h * st.omega_l
+        st.theta_l = np.where(carried, st.theta - side * gap, free_l)
+        st.omega_l = np.where(carried, st.omega, st.omega_l)
+        twist = st.theta - st.theta_l
+        hit = np.abs(twist) > gap
+        v = (st.omega + ratio * st.omega_l) / (1.0 + ratio)
+        st.omega = np.where(hit, v, st.omega)
+        st.omega_l = np.where(hit, v, st.omega_l)
+        st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
+
+
+def segments(n: int, dt_s: float, horizon_s: float, min_segments: int) -> Segments:
+    """Anchor points: segments of ``horizon_s`` (fewer samples if needed for
+    ``min_segments``), skipping the filter edges."""
+    usable = n - 2 * EDGE_SAMPLES - 1
+    horizon = max(10, min(int(round(horizon_s / dt_s)), usable // min_segments))
+    count = usable // horizon
+    starts = EDGE_SAMPLES + horizon * np.arange(count)
+    return Segments(starts=starts, horizon=horizon)
+
+
+def nominal() -> ModelSpec:
+    """The nominal model of seed 000 (no extension)."""
+    return ModelSpec()
+
+
+__all__ = ["FittedModel", "ModelSpec", "Segments", "equation_residual", "fit",
+           "fit_residual_batch", "load_estimate", "nominal", "regressors", "replace",
+           "segments", "shifted", "simulate"]

@@ -1,0 +1,101 @@
+"""Result objects of a diagnosis (CONTRACT §3 field names)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class EffectScore:
+    """One candidate effect scored on HOLDOUT.
+
+    Attributes
+    ----------
+    effect : str
+        Vocabulary name.
+    gap_percent : float
+        Holdout gap with the effect added to the nominal model and re-identified on
+        TRAIN, %.
+    shrink : float
+        ``1 − gap_percent / nominal gap``.
+    significant : bool
+        The improvement over the nominal model passes the noise-aware test.
+    params : dict
+        Fitted parameters in physical units (see :func:`stand.diagnose.candidates.params`).
+    p_value : float
+        One-sided p-value of the improvement.
+    """
+
+    effect: str
+    gap_percent: float
+    shrink: float
+    significant: bool
+    params: dict[str, float | int | None]
+    p_value: float
+
+
+@dataclass(frozen=True)
+class Where:
+    """Where the gap lies.
+
+    Attributes
+    ----------
+    regime : str
+        ``low_speed``, ``reversal``, ``high_speed``, ``acceleration``, ``steady`` or
+        ``everywhere``.
+    cycles_per_rev : int or None
+        Order of a position-periodic residual, cycles per revolution.
+    band_hz : list of float or None
+        ``[low, high]`` band holding most of the residual energy, Hz.
+    lag_s : float or None
+        Lag of the strongest residual–current cross-correlation, s (positive: the
+        residual follows the current).
+    regime_energy : dict of str to float
+        Mean squared residual in each regime over the overall mean.
+    velocity_sign_energy : dict of str to float
+        The same for ``positive`` and ``negative`` velocity.
+    """
+
+    regime: str
+    cycles_per_rev: int | None = None
+    band_hz: list[float] | None = None
+    lag_s: float | None = None
+    regime_energy: dict[str, float] = field(default_factory=dict)
+    velocity_sign_energy: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The sim-to-real gap of a HOLDOUT run, where it lies and which effect explains it.
+
+    Attributes
+    ----------
+    gap_percent : float
+        Holdout gap of the nominal model, %.
+    where : Where
+        Where it lies.
+    effects : list of EffectScore
+        Every candidate of the vocabulary, best (smallest gap) first.
+    verdict : str
+        The effect (or ``+``-joined effects, best first) that explains the gap, or ``none``.
+    verdict_gap_percent : float
+        Holdout gap of the model with the verdict's effects, %.
+    nominal : dict
+        The nominal model identified on TRAIN (``Kt_over_J`` 1/(A·s²)... per J).
+    anchoring : dict
+        How the simulation is re-anchored (``horizon_s``, ``segments``).
+    noise_floor_percent : float
+        Gap that encoder quantization alone gives (velocity difference noise), %.
+    message : str
+        One line for people.
+    """
+
+    gap_percent: float
+    where: Where
+    effects: list[EffectScore]
+    verdict: str
+    verdict_gap_percent: float
+    nominal: dict[str, float]
+    anchoring: dict[str, float | int | str]
+    noise_floor_percent: float
+    message: str = ""

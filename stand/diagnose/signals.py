@@ -1,0 +1,121 @@
+"""Signals a diagnosis works on, derived from one single-motor run.
+
+Velocity and acceleration come from the (possibly quantized) measured position, not from
+a velocity column, so every run is treated alike. Two versions exist:
+
+* ``omega_meas``: the central difference of the measured position, rad/s. This is the
+  "measured speed" the gap of CONTRACT §3 is computed against.
+* the *filtered* signals (suffix ``_f``): every signal passed through the same zero-phase
+  low-pass filter (a state-variable filter in the sense of equation-error
+  identification). Because the filter is linear and the same for every signal, the
+  equation ``θ'' = Σ c_j·φ_j`` still holds between filtered quantities, while the
+  quantization noise of the twice-differentiated position is removed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal as sps
+
+from stand.errors import InputError
+from stand.runfile import Run
+
+#: Cut-off of the zero-phase filter as a fraction of the Nyquist frequency.
+FILTER_FRACTION_OF_NYQUIST = 0.2
+#: Order of the Butterworth low-pass (applied forward and backward).
+FILTER_ORDER = 2
+#: Fewest samples a run needs for a diagnosis.
+MIN_DIAGNOSE_SAMPLES = 200
+
+
+@dataclass(frozen=True)
+class Signals:
+    """One run prepared for diagnosis.
+
+    Attributes
+    ----------
+    dt_s : float
+        Sample period, s.
+    theta : ndarray
+        Measured position, rad (or the run's position unit).
+    current : ndarray
+        Measured current, A (or the run's input unit).
+    omega_meas : ndarray
+        Central-difference velocity of ``theta``, rad/s.
+    theta_f, omega_f, accel_f : ndarray
+        Filtered position (rad), velocity (rad/s) and acceleration (rad/s²).
+    quant_rad : float
+        Estimated position quantization step, rad (0 if not quantized).
+    """
+
+    dt_s: float
+    theta: np.ndarray
+    current: np.ndarray
+    omega_meas: np.ndarray
+    theta_f: np.ndarray
+    omega_f: np.ndarray
+    accel_f: np.ndarray
+    quant_rad: float
+    source: str
+
+    def __len__(self) -> int:
+        return len(self.theta)
+
+    def filt(self, values: np.ndarray) -> np.ndarray:
+        """``values`` through the same zero-phase low-pass as the filtered signals."""
+        return lowpass(values)
+
+
+_SOS = sps.butter(FILTER_ORDER, FILTER_FRACTION_OF_NYQUIST, output="sos")
+
+
+def lowpass(values: np.ndarray) -> np.ndarray:
+    """Zero-phase Butterworth low-pass at ``FILTER_FRACTION_OF_NYQUIST`` (any 1-D/2-D)."""
+    return np.asarray(sps.sosfiltfilt(_SOS, values, axis=0, padtype="odd",
+                                      padlen=min(60, len(values) - 1)))
+
+
+def central_difference(values: np.ndarray, dt_s: float) -> np.ndarray:
+    """Central difference quotient (one-sided at the ends), unit of ``values`` per s."""
+    return np.gradient(values, dt_s)
+
+
+def quantization_step(theta: np.ndarray) -> float:
+    """Smallest common non-zero position step (the encoder count), 0 if none is seen."""
+    steps = np.abs(np.diff(theta))
+    steps = steps[steps > 1e-12 * max(1.0, float(np.max(np.abs(theta))))]
+    if steps.size < 10:
+        return 0.0
+    smallest = float(np.min(steps))
+    ratio = steps / smallest
+    on_grid = np.mean(np.abs(ratio - np.round(ratio)) < 0.02)
+    return smallest if on_grid > 0.95 else 0.0
+
+
+def prepare(run: Run) -> Signals:
+    """The :class:`Signals` of a single-motor run (``current_A``, ``position_rad``).
+
+    Raises
+    ------
+    InputError
+        Too few samples, or a position that never moves.
+    """
+    theta = np.asarray(run["position_rad"], dtype=float)
+    current = np.asarray(run["current_A"], dtype=float)
+    if len(theta) < MIN_DIAGNOSE_SAMPLES:
+        raise InputError(
+            f"{run.source}: {len(theta)} samples; a diagnosis needs at least "
+            f"{MIN_DIAGNOSE_SAMPLES} (record a longer run)"
+        )
+    if np.ptp(theta) == 0.0:
+        raise InputError(f"{run.source}: position_rad never changes; the motor did not move")
+    dt = run.dt_s
+    theta_f = lowpass(theta)
+    omega_f = central_difference(theta_f, dt)
+    accel_f = central_difference(omega_f, dt)
+    return Signals(dt_s=dt, theta=theta, current=current,
+                   omega_meas=central_difference(theta, dt), theta_f=theta_f,
+                   omega_f=omega_f, accel_f=accel_f, quant_rad=quantization_step(theta),
+                   source=run.source)

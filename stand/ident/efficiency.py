@@ -1,0 +1,165 @@
+"""Reducer efficiency from a two-motor run: seed 000 eq. 18.
+
+With the input motor held at a constant speed and the output motor applying load steps,
+each step changes the steady currents by ``Δi_in`` and ``Δi_out``, and::
+
+    η = K_out·|Δi_out| / (n·K_in·|Δi_in|)
+
+The steps are found in the output current without being told where they are: a
+step detector (the difference of the means of the ``w`` samples after and before each
+sample) is compared with the noise of the output current (from its sample-to-sample
+differences); peaks beyond ``STEP_THRESHOLD_SIGMA`` standard deviations of the detector's
+noise are steps. The steady level on either side of a step is the mean over the settled
+part of the plateau (all but its first ``SETTLE_FRACTION``), so the speed loop's
+transient after a step does not enter. Each step gives one η; the result is their mean.
+Its uncertainty is the larger of (a) the standard errors of the plateau means propagated
+through eq. 18 to first order (adjacent steps share a plateau, so their errors correlate)
+and (b) the standard error of the mean over the steps (which also sees slow drifts).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stand.errors import InputError, NotExcitedError
+from stand.ident.noise import noise_sigma
+from stand.runfile import Run
+
+#: Samples averaged on each side by the step detector.
+DETECTOR_SAMPLES = 25
+#: Detector peaks beyond this many noise standard deviations are steps.
+STEP_THRESHOLD_SIGMA = 12.0
+#: Leading fraction of each plateau left out as the transient after a step.
+SETTLE_FRACTION = 0.25
+#: Fewest samples in a plateau to take its level.
+MIN_PLATEAU_SAMPLES = 8
+
+
+@dataclass(frozen=True)
+class EfficiencyResult:
+    """Efficiency of a reducer (CONTRACT §2 ``stand efficiency``).
+
+    Attributes
+    ----------
+    efficiency : float
+        η of eq. 18, mean over the load steps.
+    efficiency_std : float
+        Standard uncertainty of ``efficiency``: the larger of the plateau noise propagated
+        through eq. 18 and the standard error of the mean over the steps.
+    delta_i_in_A, delta_i_out_A : float
+        Mean magnitude of the current changes at the steps, A.
+    steps : int
+        Load steps found.
+    step_times_s : list of float
+        Where the steps are, s.
+    efficiency_steps : list of float
+        η of each step.
+    ratio, k_in, k_out : float
+        Inputs: reduction ratio, torque constants of the input and output motors (N·m/A).
+    """
+
+    efficiency: float
+    efficiency_std: float
+    delta_i_in_A: float
+    delta_i_out_A: float
+    steps: int
+    step_times_s: list[float]
+    efficiency_steps: list[float]
+    ratio: float
+    k_in: float
+    k_out: float
+
+
+def find_steps(signal: np.ndarray, window: int = DETECTOR_SAMPLES) -> np.ndarray:
+    """Indices of the steps of a piecewise-constant noisy signal (first sample after each)."""
+    n = len(signal)
+    if n < 4 * window:
+        raise NotExcitedError(f"{n} samples are too few to find load steps (need {4 * window})")
+    c = np.concatenate([[0.0], np.cumsum(signal)])
+    k = np.arange(window, n - window + 1)
+    detector = (c[k + window] - c[k]) / window - (c[k] - c[k - window]) / window
+    sigma = noise_sigma(signal) * np.sqrt(2.0 / window)
+    threshold = STEP_THRESHOLD_SIGMA * max(sigma, np.finfo(float).tiny)
+    above = np.abs(detector) > threshold
+    steps: list[int] = []
+    start = None
+    for idx in np.flatnonzero(np.diff(np.concatenate([[False], above, [False]]).astype(int))):
+        if start is None:
+            start = idx
+        else:  # one run of samples above the threshold: its peak is the step
+            steps.append(int(k[start + int(np.argmax(np.abs(detector[start:idx])))]))
+            start = None
+    return np.array(steps, dtype=int)
+
+
+def _level(x: np.ndarray) -> tuple[float, float]:
+    """Mean of the settled part of a plateau and its standard error."""
+    settled = x[int(np.ceil(SETTLE_FRACTION * len(x))):]
+    return float(np.mean(settled)), float(np.std(settled, ddof=1) / np.sqrt(len(settled)))
+
+
+def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyResult:
+    """η of eq. 18 from a two-motor run with output load steps.
+
+    Parameters
+    ----------
+    run : Run
+        Reducer run (``current_in_A``, ``current_out_A``, ...).
+    ratio : float
+        Reduction ratio n = ω_in/ω_out.
+    k_in, k_out : float
+        Torque constants of the input and output motors, N·m/A.
+
+    Raises
+    ------
+    InputError
+        Non-positive ratio or torque constant.
+    NotExcitedError
+        No load step in the output current, or plateaus too short.
+    """
+    for name, value in (("ratio", ratio), ("k_in", k_in), ("k_out", k_out)):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be a finite number > 0, got {value}")
+    i_in, i_out = run["current_in_A"], run["current_out_A"]
+    steps = find_steps(i_out)
+    if steps.size == 0:
+        raise NotExcitedError(
+            f"{run.source}: no load step in current_out_A (noise {noise_sigma(i_out):.3g} A); "
+            "the efficiency run needs output load steps well above the current noise"
+        )
+    bounds = np.concatenate([[0], steps, [len(i_out)]])
+    if np.min(np.diff(bounds)) < MIN_PLATEAU_SAMPLES:
+        raise NotExcitedError(
+            f"{run.source}: a load plateau is shorter than {MIN_PLATEAU_SAMPLES} samples; "
+            "hold each load longer"
+        )
+    plateaus = [slice(bounds[j], bounds[j + 1]) for j in range(len(bounds) - 1)]
+    level_in, se_in = np.array([_level(i_in[p]) for p in plateaus]).T
+    level_out, se_out = np.array([_level(i_out[p]) for p in plateaus]).T
+    step_in, step_out = np.diff(level_in), np.diff(level_out)
+    if np.any(step_in == 0):
+        raise NotExcitedError(f"{run.source}: the input current did not change at a load step")
+    di_in, di_out = np.abs(step_in), np.abs(step_out)
+    etas = k_out * di_out / (ratio * k_in * di_in)
+    m = len(etas)
+    # Propagate the plateau-mean errors to the mean η exactly to first order: adjacent steps
+    # share a plateau, so their errors are correlated.
+    grad_in, grad_out = np.zeros(m + 1), np.zeros(m + 1)
+    for k in range(m):
+        d_in = -etas[k] / di_in[k] * np.sign(step_in[k]) / m     # ∂η̄/∂(L_in[k+1] − L_in[k])
+        d_out = etas[k] / di_out[k] * np.sign(step_out[k]) / m
+        grad_in[k + 1] += d_in
+        grad_in[k] -= d_in
+        grad_out[k + 1] += d_out
+        grad_out[k] -= d_out
+    propagated = float(np.sqrt(np.sum((grad_in * se_in) ** 2 + (grad_out * se_out) ** 2)))
+    scatter = float(np.std(etas, ddof=1) / np.sqrt(m)) if m > 1 else 0.0
+    std = max(propagated, scatter)
+    return EfficiencyResult(
+        efficiency=float(np.mean(etas)), efficiency_std=std,
+        delta_i_in_A=float(np.mean(di_in)), delta_i_out_A=float(np.mean(di_out)), steps=m,
+        step_times_s=[float(run.time_s[s]) for s in steps],
+        efficiency_steps=[float(e) for e in etas], ratio=ratio, k_in=k_in, k_out=k_out,
+    )

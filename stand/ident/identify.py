@@ -1,0 +1,137 @@
+"""One single-motor run to the model of seed 000 eqs. 2-5: A, B and the physical ratios.
+
+The state is ``x = [θ, ω]`` and the input ``u = i − i_nl`` (measured current less the
+no-load current of §5.1, 0 when not compensating). Eq. 10 gives::
+
+    A = [[0, 1], [−C/J, −D/J]],   B = [[0], [Kt/J]]
+
+``fit_percent`` is the equation-error fit of the acceleration row (the row that carries
+the physics; the first row is the kinematic identity θ' = ω).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stand.errors import NotExcitedError
+from stand.ident.derivatives import DEFAULT_HALF_WIDTH, state_derivatives
+from stand.ident.noise import noise_sigma
+from stand.ident.qmatrix import QSums, solve
+from stand.runfile import Run
+
+#: The current must vary by more than this many times its white-noise level: a constant
+#: current cannot separate Kt·i from constant torques (Coulomb friction, an offset).
+CURRENT_EXCITATION_SIGMA = 3.0
+#: Largest relative standard error of Kt/J for which a run counts as exciting the model;
+#: beyond it the current carries no information distinguishable from noise (e.g. a
+#: constant current at a constant speed).
+MAX_RELATIVE_SE = 0.25
+
+
+@dataclass(frozen=True)
+class IdentifyResult:
+    """Identified model of one run (CONTRACT §2 ``stand identify``).
+
+    Attributes
+    ----------
+    A : list of list of float
+        System matrix (2x2): rows θ', ω'; columns θ, ω.
+    B : list of list of float
+        Input matrix (2x1), per A of current, rad/s² per A in the second row.
+    Kt_over_J : float
+        ``B[1][0]``, rad/(s²·A).
+    D_over_J : float
+        ``−A[1][1]``, 1/s.
+    C_over_J : float
+        ``−A[1][0]``, 1/s².
+    Kt_over_J_se, D_over_J_se, C_over_J_se : float
+        Standard errors (white equation error assumed; see :class:`QResult`).
+    fit_percent : float
+        Equation-error fit of the acceleration row, %.
+    condition_number : float
+        Of the equilibrated normal matrix of eq. 10.
+    samples : int
+        Rows used in eq. 10.
+    method : str
+        ``default`` or ``paper``.
+    dt_s : float
+        Sample period, s.
+    no_load_current_A : float
+        Current subtracted from the measured current, A.
+    """
+
+    A: list[list[float]]
+    B: list[list[float]]
+    Kt_over_J: float
+    D_over_J: float
+    C_over_J: float
+    Kt_over_J_se: float
+    D_over_J_se: float
+    C_over_J_se: float
+    fit_percent: float
+    condition_number: float
+    samples: int
+    method: str
+    dt_s: float
+    no_load_current_A: float
+
+
+def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0.0,
+                 half_width: int = DEFAULT_HALF_WIDTH) -> IdentifyResult:
+    """Identify A and B of one single-motor run by seed 000 eq. 10.
+
+    Parameters
+    ----------
+    run : Run
+        Single-motor run with ``position_rad`` and ``current_A``.
+    method : {'default', 'paper'}
+        Derivatives: kernel filtering or the paper's forward Euler differences.
+    no_load_current_A : float
+        No-load current subtracted from the measured current (§5.1), A.
+    half_width : int
+        Half width of the default kernel, samples.
+
+    Raises
+    ------
+    NotExcitedError
+        The run does not determine the model.
+    """
+    dt = run.dt_s
+    position = run["position_rad"]
+    if np.ptp(position) == 0:
+        raise NotExcitedError(
+            f"{run.source}: position_rad never changes: the motor is at rest, which does not "
+            "excite the model; command a varying speed"
+        )
+    measured = run["current_A"]
+    spread, noise = float(np.std(measured)), noise_sigma(measured)
+    if not spread > CURRENT_EXCITATION_SIGMA * noise:
+        raise NotExcitedError(
+            f"{run.source}: current_A varies by {spread:.3g} A (standard deviation), no more "
+            f"than {CURRENT_EXCITATION_SIGMA:g} times its noise {noise:.3g} A: a constant "
+            "current cannot separate Kt from constant torques; excite the motor with a "
+            "varying command (e.g. a band-limited or PRBS speed command)"
+        )
+    current = measured - no_load_current_A
+    states = state_derivatives(position, current, dt, method, half_width)
+    sums = QSums.zeros(2, 1).add(states.xdot, states.x, states.inputs, dt)
+    try:
+        q = solve(sums, names=["angle θ", "speed ω", "current i"])
+    except NotExcitedError as exc:
+        raise NotExcitedError(f"{run.source}: {exc}") from None
+    b2, b2_se = float(q.B[1, 0]), float(q.B_se[1, 0])
+    if not abs(b2) > MAX_RELATIVE_SE ** -1 * b2_se:
+        raise NotExcitedError(
+            f"{run.source}: Kt/J = {b2:.4g} ± {b2_se:.2g}: the current does not excite the "
+            "model beyond its noise; use a varying command such as a band-limited or PRBS "
+            "speed command"
+        )
+    return IdentifyResult(
+        A=q.A.tolist(), B=q.B.tolist(),
+        Kt_over_J=b2, D_over_J=-float(q.A[1, 1]), C_over_J=-float(q.A[1, 0]),
+        Kt_over_J_se=b2_se, D_over_J_se=float(q.A_se[1, 1]), C_over_J_se=float(q.A_se[1, 0]),
+        fit_percent=float(q.fit_percent[1]), condition_number=float(q.condition_number),
+        samples=int(q.samples), method=method, dt_s=dt, no_load_current_A=no_load_current_A,
+    )

@@ -1,0 +1,303 @@
+"""Runs as jobs on the one stand: a queue, one worker thread, samples persisted as they come.
+
+The :class:`JobManager` takes run requests (plain JSON data), checks them against the
+profile's limits *before* queuing (:class:`~stand.errors.LimitError`), and runs them one
+after the other on a :class:`StandRunner` — the stand controller over the bus, or a
+direct simulation. Every sample chunk the runner hands over is committed to
+:class:`~stand.storage.Storage` at once, so a crash keeps the samples recorded so far.
+
+Run states: ``queued`` → ``running`` → ``done`` | ``stopped`` (POST /stop) | ``aborted``
+(the stand aborted the run, or the service died during it) | ``failed`` (an error).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from stand.errors import InputError, RunAborted, StandError
+from stand.storage import RunRecord, Storage
+
+log = logging.getLogger("stand.jobs")
+
+#: Least time between two progress writes to the database, s.
+PROGRESS_INTERVAL_S = 0.2
+#: How long close() waits for the worker to finish the current run after a stop, s.
+CLOSE_TIMEOUT_S = 10.0
+
+ProgressCallback = Callable[[float], None]
+ChunkCallback = Callable[[Mapping[str, np.ndarray]], None]
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """One checked run of a request: its kind, its profile, the request as stored, and
+    what the runner needs to execute it (``payload``, not stored)."""
+
+    kind: str
+    profile: str
+    request: dict[str, Any]
+    payload: Any = None
+
+
+@dataclass
+class RunOutcome:
+    """What a runner reports at the end of a run."""
+
+    meta: dict[str, Any] = field(default_factory=dict)
+    message: str = ""
+
+
+class StandRunner(Protocol):
+    """What the job manager needs from a stand (bus controller or simulation)."""
+
+    def plan(self, request: Mapping[str, Any]) -> list[RunPlan]:
+        """The runs of ``request``, checked against the profile and its limits; nothing moves."""
+        ...
+
+    def execute(self, run_id: str, plan: RunPlan, on_progress: ProgressCallback, on_chunk: ChunkCallback,
+                stop: threading.Event) -> RunOutcome:
+        """Run the experiment; return when done or when ``stop`` is set."""
+        ...
+
+    def quick_stop_all(self) -> dict[str, Any]:
+        """CiA 402 quick stop to every drive at once."""
+        ...
+
+    def status(self) -> dict[str, Any]:
+        """Nodes, NMT states, heartbeat ages, error counters."""
+        ...
+
+    def close(self) -> None:
+        """Release the bus and threads."""
+        ...
+
+
+class JobManager:
+    """Queue of run jobs on one stand, executed by one worker thread.
+
+    Parameters
+    ----------
+    storage : Storage
+        Where runs and samples go.
+    runner : StandRunner
+        The stand.
+    """
+
+    def __init__(self, storage: Storage, runner: StandRunner) -> None:
+        self.storage = storage
+        self.runner = runner
+        self._queue: queue.Queue[str | None] = queue.Queue()
+        self._plans: dict[str, RunPlan] = {}
+        self._lock = threading.Lock()
+        self._current: str | None = None
+        self._stop = threading.Event()
+        self._cancelled: set[str] = set()
+        self._worker = threading.Thread(target=self._work, name="stand-jobs", daemon=True)
+        self._worker.start()
+
+    # -- requests ---------------------------------------------------------------------
+
+    def submit(self, request: Mapping[str, Any]) -> list[RunRecord]:
+        """Check ``request`` and queue its runs; returns them (state ``queued``)."""
+        plans = self.runner.plan(request)
+        records = [self.storage.create_run(plan.kind, "job", profile=plan.profile,
+                                           request=plan.request) for plan in plans]
+        with self._lock:
+            for record, plan in zip(records, plans, strict=True):
+                self._plans[record.id] = plan
+        for record in records:
+            self._queue.put(record.id)
+        return records
+
+    def stop_all(self) -> dict[str, Any]:
+        """Quick stop every drive now, stop the current run, cancel the queued ones."""
+        started = time.monotonic()
+        with self._lock:
+            current = self._current
+            self._stop.set()
+            cancelled = [run_id for run_id in self._plans if run_id != current]
+            self._cancelled.update(cancelled)
+        drives = self.runner.quick_stop_all()
+        for run_id in cancelled:
+            self.storage.update_run(run_id, state="stopped", message="cancelled by POST /stop")
+        return {"stopped_run": current, "cancelled_runs": cancelled, "drives": drives,
+                "wall_time_s": time.monotonic() - started}
+
+    def status(self) -> dict[str, Any]:
+        """The stand's status plus the current run and the queue length."""
+        with self._lock:
+            current, queued = self._current, len(self._plans) - (self._current is not None)
+        return {**self.runner.status(), "current_run": current, "queued_runs": queued}
+
+    def close(self) -> None:
+        """Stop the current run, let the worker end, close the runner."""
+        with self._lock:
+            self._stop.set()
+        self._queue.put(None)
+        self._worker.join(CLOSE_TIMEOUT_S)
+        self.runner.close()
+
+    # -- worker -----------------------------------------------------------------------
+
+    def _work(self) -> None:
+        while True:
+            run_id = self._queue.get()
+            if run_id is None:
+                return
+            with self._lock:
+                plan = self._plans.get(run_id)
+                if plan is None or run_id in self._cancelled:
+                    self._plans.pop(run_id, None)
+                    continue
+                self._current = run_id
+                self._stop.clear()
+            try:
+                self._execute(run_id, plan)
+            finally:
+                with self._lock:
+                    self._current = None
+                    self._plans.pop(run_id, None)
+
+    def _execute(self, run_id: str, plan: RunPlan) -> None:
+        storage = self.storage
+        storage.update_run(run_id, state="running")
+        last = [0.0]
+
+        def on_progress(fraction: float) -> None:
+            now = time.monotonic()
+            if now - last[0] >= PROGRESS_INTERVAL_S:
+                last[0] = now
+                storage.update_run(run_id, progress=fraction)
+
+        def on_chunk(columns: Mapping[str, np.ndarray]) -> None:
+            storage.append_samples(run_id, columns)
+
+        try:
+            outcome = self.runner.execute(run_id, plan, on_progress, on_chunk, self._stop)
+        except RunAborted as exc:
+            storage.update_run(run_id, state="aborted", message=str(exc))
+        except StandError as exc:
+            storage.update_run(run_id, state="failed", message=str(exc))
+        except Exception as exc:  # a bug in a runner must not kill the worker
+            log.exception("run %s failed", run_id)
+            storage.update_run(run_id, state="failed", message=f"{type(exc).__name__}: {exc}")
+        else:
+            if self._stop.is_set():
+                storage.update_run(run_id, state="stopped", meta=outcome.meta,
+                                   message=outcome.message or "stopped by POST /stop (quick stop)")
+            else:
+                storage.update_run(run_id, state="done", progress=1.0, meta=outcome.meta,
+                                   message=outcome.message)
+
+
+class ControllerRunner:
+    """The stand run by :class:`stand.controller.StandController` over the bus.
+
+    A request names an experiment profile (``profiles/experiments``) and ``overrides``
+    of its fields (``repeats``, ``duration_s``, ``seed``, ...); it becomes one job per
+    run of the experiment (the torque-constant experiment: no-load and added-inertia
+    runs, alternately). Run files and CAN traces go to ``runs_dir/<run id>/``.
+
+    Parameters
+    ----------
+    bus_factory : callable
+        ``bus_factory(profile, seed)`` opens the stand's bus (a ``StandBus``), with the
+        drives of the motor or stand ``profile`` simulated when the bus is virtual.
+    runs_dir : path
+        Where run files and traces are written.
+    time_mode : {'lockstep', 'realtime'}
+        SYNC timing (lockstep for simulated drives).
+    """
+
+    def __init__(self, bus_factory: Callable[[str, int | None], Any], runs_dir: str | Path,
+                 time_mode: str = "lockstep") -> None:
+        self.bus_factory = bus_factory
+        self.runs_dir = Path(runs_dir)
+        self.time_mode = time_mode
+        self._lock = threading.Lock()
+        self._bus: Any = None
+        self._bus_key: tuple[str, int | None] | None = None
+
+    def plan(self, request: Mapping[str, Any]) -> list[RunPlan]:
+        from pydantic import ValidationError
+
+        from stand.controller import ExperimentProfile, load_experiment, plan
+
+        name = str(request.get("profile"))
+        experiment = load_experiment(name)
+        overrides = dict(request.get("overrides") or {})
+        for key in ("name", "procedure", "motor", "stand"):
+            if key in overrides:
+                raise InputError(f"overrides.{key}: cannot be changed by a request; choose another "
+                                 "experiment profile (GET /profiles)")
+        try:
+            experiment = ExperimentProfile(**{**experiment.model_dump(), **overrides})
+        except ValidationError as exc:
+            where = "; ".join(f"overrides.{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                              for e in exc.errors())
+            raise InputError(where) from exc
+        runs = plan(experiment)  # LimitError before anything moves
+        target = str(experiment.stand or experiment.motor)
+        return [RunPlan(proc.kind, experiment.name,
+                        {"profile": name, "overrides": overrides, "procedure": proc.name,
+                         "run": k + 1, "runs": len(runs), "description": proc.description},
+                        payload=(proc, drives, target, experiment.seed))
+                for k, (proc, drives) in enumerate(runs)]
+
+    def _open(self, profile: str, seed: int | None) -> Any:
+        with self._lock:
+            if self._bus is not None and self._bus_key == (profile, seed):
+                return self._bus
+            old, self._bus, self._bus_key = self._bus, None, None
+        if old is not None:
+            old.close()
+        bus = self.bus_factory(profile, seed)
+        with self._lock:
+            self._bus, self._bus_key = bus, (profile, seed)
+        return bus
+
+    def execute(self, run_id: str, plan: RunPlan, on_progress: ProgressCallback,
+                on_chunk: ChunkCallback, stop: threading.Event) -> RunOutcome:
+        from stand.controller import StandController
+
+        procedure, drives, target, seed = plan.payload
+        bus = self._open(target, seed)
+        controller = StandController(bus, self.time_mode, on_chunk=on_chunk, stop=stop)
+        record = controller.run_procedure(procedure, drives, self.runs_dir / run_id,
+                                          lambda k, n: on_progress(k / n))
+        meta = {"path": record.path, "trace_path": record.trace_path,
+                "expected_samples": record.expected_samples, "period_s": record.period_s,
+                "complete": record.complete, "lost": record.lost, "late": record.late,
+                "duplicates": record.duplicates, "wall_time_s": record.wall_time_s,
+                "stand_time_s": record.stand_time_s, "aborted": record.aborted}
+        return RunOutcome(meta, record.aborted or "")
+
+    def quick_stop_all(self) -> dict[str, Any]:
+        with self._lock:
+            bus = self._bus
+        if bus is None:
+            return {"sent": False, "reason": "no bus open: no drive has been set up yet"}
+        bus.quick_stop_all()
+        return {"sent": True, "nodes": [n["node_id"] for n in bus.status().get("nodes", [])]}
+
+    def status(self) -> dict[str, Any]:
+        with self._lock:
+            bus, key = self._bus, self._bus_key
+        if bus is None:
+            return {"bus": "closed (opens with the first run)", "nodes": []}
+        return {**bus.status(), "profile": key[0] if key else None}
+
+    def close(self) -> None:
+        with self._lock:
+            bus, self._bus, self._bus_key = self._bus, None, None
+        if bus is not None:
+            bus.close()

@@ -1,0 +1,141 @@
+"""Benchmark of the HTTP service and its storage; prints figures (not collected by pytest).
+
+Run: ``python -m tests.bench.bench_api`` (about a minute on 2 cores).
+
+1. Storage of samples: SQLite BLOB chunks (the choice) against appending CSV files,
+   per-chunk write latency and the read-back time of a 100 000-sample run.
+2. 50 concurrent POST /identify on stored 100 000-sample runs against a real uvicorn:
+   errors, p50 / p99 / max latency, throughput.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
+from stand.procedures import multisine
+from stand.profiles import load_motor
+from stand.runfile import format_run, read_run
+from stand.storage import Storage
+from tests.integration.test_api_support import serve
+
+SAMPLES = 100_000
+CHUNK = 250
+REQUESTS = 50
+COLUMNS = ("time_s", "current_A", "position_rad", "voltage_V", "velocity_rad_s")
+
+
+def percentile(values: list[float], q: float) -> float:
+    return float(np.percentile(np.asarray(values), q))
+
+
+def bench_storage(workdir: Path) -> None:
+    rng = np.random.default_rng(0)
+    table = rng.standard_normal((SAMPLES, len(COLUMNS)))
+    table[:, 0] = np.arange(SAMPLES) * 1e-3
+    storage = Storage(workdir / "bench.sqlite3")
+    run_id = storage.create_run("single", "job", columns=COLUMNS).id
+    db_times = []
+    for start in range(0, SAMPLES, CHUNK):
+        block = table[start:start + CHUNK]
+        t0 = time.perf_counter()
+        storage.append_samples(run_id, {n: block[:, j] for j, n in enumerate(COLUMNS)})
+        db_times.append(time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    back = storage.samples(run_id)
+    db_read = time.perf_counter() - t0
+    assert np.array_equal(back["current_A"], table[:, 1])
+    storage.close()
+    db_size = (workdir / "bench.sqlite3").stat().st_size + sum(
+        p.stat().st_size for p in workdir.glob("bench.sqlite3-*"))
+
+    csv_path = workdir / "bench.csv"
+    csv_times = []
+    with open(csv_path, "w", encoding="utf-8") as out:
+        out.write(",".join(COLUMNS) + "\n")
+        for start in range(0, SAMPLES, CHUNK):
+            block = table[start:start + CHUNK]
+            t0 = time.perf_counter()
+            text = format_run({n: block[:, j] for j, n in enumerate(COLUMNS)})
+            out.write(text.split("\n", 1)[1])
+            out.flush()
+            csv_times.append(time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    read_run(csv_path, "single")
+    csv_read = time.perf_counter() - t0
+
+    print(f"storage of {SAMPLES} samples x {len(COLUMNS)} columns in chunks of {CHUNK}:")
+    print(f"  sqlite blob chunks (WAL, one transaction a chunk): write p50 "
+          f"{1e3 * statistics.median(db_times):.3f} ms p99 {1e3 * percentile(db_times, 99):.3f} ms "
+          f"a chunk; read all {1e3 * db_read:.1f} ms; {db_size / 1e6:.1f} MB (exact float64)")
+    print(f"  csv append + flush:                               write p50 "
+          f"{1e3 * statistics.median(csv_times):.3f} ms p99 {1e3 * percentile(csv_times, 99):.3f} ms "
+          f"a chunk; read all (validated) {1e3 * csv_read:.1f} ms; "
+          f"{csv_path.stat().st_size / 1e6:.1f} MB (9 digits)")
+
+
+def long_run_csv() -> str:
+    profile = load_motor("crouzet_82800502")
+    dt = 1e-3
+    limit = profile.limits.speed_rad_s
+    command = multisine(SAMPLES, dt, 0.5 * limit, 0.25 * limit, 10.0, seed=1)
+    plant = MotorPlant(profile.motor_params(), profile.drive_params("speed"),
+                       profile.sensor_params(), profile.effect_set(), seed=1)
+    return format_run(simulate_motor(plant, "speed", command, dt).columns)
+
+
+async def fire(base_url: str, headers: dict[str, str], run_ids: list[str]) -> tuple[list[float], int, float]:
+    latencies: list[float] = []
+    errors = 0
+    async with httpx.AsyncClient(base_url=base_url, headers=headers, timeout=600) as client:
+        async def one(k: int) -> None:
+            nonlocal errors
+            t0 = time.perf_counter()
+            answer = await client.post("/identify", json={"run": run_ids[k % len(run_ids)]})
+            latencies.append(time.perf_counter() - t0)
+            if answer.status_code != 200:
+                errors += 1
+                print(f"  request {k}: {answer.status_code} {answer.text[:200]}", file=sys.stderr)
+        t0 = time.perf_counter()
+        await asyncio.gather(*(one(k) for k in range(REQUESTS)))
+        wall = time.perf_counter() - t0
+    return latencies, errors, wall
+
+
+def bench_identify(workdir: Path) -> None:
+    t0 = time.perf_counter()
+    text = long_run_csv()
+    print(f"simulated a {SAMPLES}-sample run in {time.perf_counter() - t0:.1f} s "
+          f"({len(text) / 1e6:.1f} MB of CSV)")
+    with serve(workdir / "server") as server, server.client() as client:
+        run_ids = []
+        for _ in range(5):
+            answer = client.post("/runs/upload", files={"file": ("long.csv", text)})
+            answer.raise_for_status()
+            run_ids.append(answer.json()["id"])
+        latencies, errors, wall = asyncio.run(
+            fire(server.base_url, {"Authorization": f"Bearer {server.api_key}"}, run_ids))
+    print(f"{REQUESTS} concurrent POST /identify on stored {SAMPLES}-sample runs "
+          f"(5 distinct runs), one uvicorn worker, 2 shared cores:")
+    print(f"  errors {errors}; latency p50 {percentile(latencies, 50):.2f} s, "
+          f"p99 {percentile(latencies, 99):.2f} s, max {max(latencies):.2f} s; "
+          f"all done in {wall:.2f} s ({REQUESTS / wall:.1f} requests/s)")
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        bench_storage(Path(tmp))
+        bench_identify(Path(tmp))
+
+
+if __name__ == "__main__":
+    main()

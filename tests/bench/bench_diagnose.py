@@ -1,0 +1,51 @@
+"""Blind benchmark of ``stand diagnose`` (issue 5). A script, not collected by pytest.
+
+    python tests/bench/bench_diagnose.py --cases 200 --seed 1 --workers 2
+
+Draws random stands (motor, drive mode, excitation, sensors, zero/one/two effects),
+simulates TRAIN and HOLDOUT runs, diagnoses them blind from the CSV files, and prints
+the confusion matrix, top-1 accuracy, false alarms on effect-free cases, the median
+holdout shrink of the true effect, and the time to diagnose 20 s of 1 kHz data.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from stand.diagnose.benchmark import confusion_table, run_benchmark, summarize_cases, timing_case
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--rows", help="write every case as JSON lines to this file")
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    rows = run_benchmark(args.cases, args.seed, args.workers)
+    wall = time.perf_counter() - start
+    summary = summarize_cases(rows)
+    timing = timing_case()
+    if args.rows:
+        with open(args.rows, "w", encoding="utf-8") as out:
+            for row in rows:
+                out.write(json.dumps(row) + "\n")
+    print(confusion_table(summary))
+    print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
+    print(f"top-1 accuracy {100 * summary['top1_accuracy']:.1f} %  "
+          f"(exact set {100 * summary['exact_accuracy']:.1f} %)")
+    print(f"false alarms on none {100 * summary['false_alarm_rate']:.1f} % of "
+          f"{summary['none_cases']} effect-free cases; missed effects "
+          f"{100 * summary['missed_rate']:.1f} %")
+    print(f"median holdout shrink of the true effect {100 * summary['median_true_shrink']:.1f} %")
+    print(f"diagnose {timing['duration_s']:.0f} s at {timing['rate_hz']:.0f} Hz: "
+          f"{timing['seconds']:.2f} s (read + diagnose)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

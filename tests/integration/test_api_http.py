@@ -1,0 +1,150 @@
+"""The HTTP service over a real uvicorn on loopback: access, validation, runs as jobs."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+
+from stand.runfile import format_run, parse_run
+from tests.integration.test_api_support import Server, serve
+
+MOTOR = "crouzet_82800502"
+#: One no-load run of 1.5 s of stand time at 1 kHz: about half a second of wall time.
+SHORT_RUN = {"profile": "seed000_no_load", "overrides": {"duration_s": 1.5}}
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    with serve(tmp_path_factory.mktemp("api")) as running:
+        yield running
+
+
+@pytest.fixture()
+def client(server: Server) -> Iterator[httpx.Client]:
+    with server.client() as c:
+        yield c
+
+
+def wait_final(client: httpx.Client, run_id: str, timeout_s: float = 60.0) -> dict:
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        run = client.get(f"/runs/{run_id}").json()
+        if run["state"] not in ("queued", "running"):
+            return run
+        time.sleep(0.05)
+    raise AssertionError(f"run {run_id} still {run['state']} after {timeout_s} s")
+
+
+def test_health_and_profiles(client: httpx.Client) -> None:
+    health = client.get("/health")
+    assert health.status_code == 200 and health.json()["status"] == "ok"
+    profiles = client.get("/profiles").json()
+    assert MOTOR in profiles["motors"]
+    assert client.get("/openapi.json").json()["paths"].keys() >= {
+        "/runs", "/runs/{run_id}", "/runs/{run_id}/samples", "/identify", "/torque-constant",
+        "/efficiency", "/step-identify", "/diagnose", "/profiles", "/bus", "/stop", "/health"}
+
+
+def test_mutating_routes_need_the_key(server: Server) -> None:
+    with server.client(auth=False) as anonymous:
+        assert anonymous.post("/runs", json=SHORT_RUN).status_code == 401
+        assert anonymous.post("/stop").status_code == 401
+        assert anonymous.post("/identify", json={"run": "x"}).status_code == 401
+        wrong = anonymous.post("/runs", json=SHORT_RUN, headers={"Authorization": "Bearer nope"})
+        assert wrong.status_code == 401
+        assert anonymous.get("/runs").status_code == 200  # reading is open
+
+
+def test_validation_names_the_field(client: httpx.Client) -> None:
+    answer = client.post("/runs", json={"overrides": {}})
+    assert answer.status_code == 422
+    assert ["body", "profile"] in [e["loc"] for e in answer.json()["detail"]]
+    answer = client.post("/runs", json={**SHORT_RUN, "overrides": {"duration_s": -1}})
+    assert answer.status_code == 422 and "overrides.duration_s" in answer.json()["detail"]
+    answer = client.post("/efficiency", json={"run": "abc", "ratio": "eleven", "k_in": 1, "k_out": 1})
+    assert answer.status_code == 422
+    assert ["body", "ratio"] in [e["loc"] for e in answer.json()["detail"]]
+    assert client.post("/identify", content=b"{not json").status_code == 422
+
+
+def test_limits_are_enforced_before_anything_moves(client: httpx.Client) -> None:
+    # The output motor's current limit is 3 A (crouzet_82800502): a 5 A load step exceeds it.
+    before = len(client.get("/runs").json())
+    answer = client.post("/runs", json={"profile": "seed000_efficiency",
+                                        "overrides": {"load_current_A": 5.0}})
+    assert answer.status_code == 422 and answer.json()["error"] == "limit"
+    assert len(client.get("/runs").json()) == before, "a refused job must store no run"
+
+
+def test_unknown_ids_are_404(client: httpx.Client) -> None:
+    assert client.get("/runs/nope").status_code == 404
+    assert client.get("/runs/nope/samples").status_code == 404
+    assert client.get("/runs/nope/events").status_code == 404
+    assert client.post("/identify", json={"run": "nope"}).status_code == 404
+    assert client.get("/results/nope").status_code == 404
+    assert client.post("/runs", json={**SHORT_RUN, "profile": "no_such_experiment"}).status_code == 404
+
+
+def test_run_job_lifecycle_and_samples(client: httpx.Client) -> None:
+    answer = client.post("/runs", json=SHORT_RUN)
+    assert answer.status_code == 202
+    run_id = answer.json()["id"]
+    assert answer.headers["location"] == f"/runs/{run_id}"
+    run = wait_final(client, run_id)
+    assert run["state"] == "done" and run["progress"] == 1.0
+    csv_text = client.get(f"/runs/{run_id}/samples").text
+    recorded = parse_run(csv_text, "single", "samples")  # a valid CONTRACT §1 file
+    assert len(recorded) == run["samples"] > 0
+    as_json = client.get(f"/runs/{run_id}/samples", params={"format": "json"}).json()
+    np.testing.assert_allclose(as_json["position_rad"], recorded["position_rad"], rtol=1e-8,
+                               err_msg="CSV keeps 9 significant digits")
+    assert run_id in [r["id"] for r in client.get("/runs").json()]
+
+
+def test_event_stream_ends_with_the_run(client: httpx.Client) -> None:
+    run_id = client.post("/runs", json=SHORT_RUN).json()["id"]
+    events: list[tuple[str, dict]] = []
+    with client.stream("GET", f"/runs/{run_id}/events") as stream:
+        name = ""
+        for line in stream.iter_lines():
+            if line.startswith("event: "):
+                name = line[7:]
+            elif line.startswith("data: "):
+                events.append((name, json.loads(line[6:])))
+    assert events[-1][0] == "end" and events[-1][1]["state"] == "done"
+    streamed = sum(len(data["columns"]["time_s"]) for name, data in events if name == "samples")
+    assert streamed == client.get(f"/runs/{run_id}").json()["samples"]
+
+
+def test_upload_limit_is_413(tmp_path: Path) -> None:
+    with serve(tmp_path, extra_env={"STAND_UPLOAD_LIMIT_BYTES": "2000"}) as small:
+        t = np.arange(200) * 1e-3
+        text = format_run({"time_s": t, "current_A": np.sin(t), "position_rad": t})
+        with small.client() as c:
+            answer = c.post("/identify", files={"run": ("big.csv", text)})
+            assert answer.status_code == 413
+            answer = c.post("/runs/upload", files={"file": ("big.csv", text)})
+            assert answer.status_code == 413
+
+
+def test_bad_upload_is_422_naming_row_and_column(client: httpx.Client) -> None:
+    text = "time_s,current_A,position_rad\n" + "".join(f"{k},0.1,{k}\n" for k in range(30))
+    text = text.replace("\n5,0.1,5\n", "\n5,abc,5\n")
+    answer = client.post("/runs/upload", files={"file": ("bad.csv", text)}, data={"kind": "single"})
+    assert answer.status_code == 422
+    assert "row 7, column current_A" in answer.json()["detail"]
+
+
+def test_stop_quick_stops_and_reports(client: httpx.Client) -> None:
+    answer = client.post("/stop")
+    assert answer.status_code == 200
+    assert "drives" in answer.json()
+    bus = client.get("/bus").json()
+    assert {"nodes", "current_run", "queued_runs"} <= bus.keys()

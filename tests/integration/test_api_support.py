@@ -1,0 +1,102 @@
+"""A real ``stand serve`` (uvicorn) in a subprocess on a free loopback port, for the API tests.
+
+Not a test module of its own: the API tests import :func:`serve` from here.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import httpx
+
+#: How long the server may take to answer /health after start, s.
+START_TIMEOUT_S = 30.0
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@dataclass
+class Server:
+    """A running service: its URL, key, data directory and process."""
+
+    base_url: str
+    api_key: str | None
+    data_dir: Path
+    process: subprocess.Popen[bytes]
+    log_path: Path
+
+    def client(self, auth: bool = True, timeout: float = 60.0) -> httpx.Client:
+        headers = {"Authorization": f"Bearer {self.api_key}"} if auth and self.api_key else {}
+        return httpx.Client(base_url=self.base_url, headers=headers, timeout=timeout)
+
+    def kill(self) -> None:
+        """SIGKILL: no shutdown, no cleanup, as a crash."""
+        self.process.send_signal(signal.SIGKILL)
+        self.process.wait(10)
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace")
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def start(data_dir: Path, api_key: str | None = "test-key", extra_env: dict[str, str] | None = None,
+          ) -> Server:
+    """Start ``python -m stand serve`` and wait until /health answers."""
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("STAND_")}
+    env.update(STAND_DATA_DIR=str(data_dir), PYTHONPATH=str(ROOT), **(extra_env or {}))
+    if api_key:
+        env["STAND_API_KEY"] = api_key
+    data_dir.mkdir(parents=True, exist_ok=True)
+    log_path = data_dir / f"server-{port}.log"
+    with open(log_path, "ab") as log:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "stand", "serve", "--host", "127.0.0.1", "--port", str(port),
+             "--log-level", "warning"], cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+    server = Server(f"http://127.0.0.1:{port}", api_key, data_dir, process, log_path)
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while time.monotonic() < deadline:
+        if process.poll() is not None:
+            raise RuntimeError(f"server exited with {process.returncode}:\n{server.log()}")
+        try:
+            if httpx.get(f"{server.base_url}/health", timeout=1.0).status_code == 200:
+                return server
+        except httpx.TransportError:
+            pass
+        time.sleep(0.1)
+    server.kill()
+    raise RuntimeError(f"server did not answer /health in {START_TIMEOUT_S} s:\n{server.log()}")
+
+
+def stop(server: Server) -> None:
+    """SIGTERM and wait (graceful shutdown); SIGKILL if it hangs."""
+    if server.process.poll() is None:
+        server.process.terminate()
+        try:
+            server.process.wait(15)
+        except subprocess.TimeoutExpired:
+            server.kill()
+
+
+@contextmanager
+def serve(data_dir: Path, api_key: str | None = "test-key",
+          extra_env: dict[str, str] | None = None) -> Iterator[Server]:
+    """A running server for the ``with`` block."""
+    server = start(data_dir, api_key, extra_env)
+    try:
+        yield server
+    finally:
+        stop(server)

@@ -1,0 +1,100 @@
+"""Experiments over the bus give the same runs as the direct simulation (issue 3, done 1)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from bus.adapters import BusConfig
+from bus.stand_bus import StandBus
+from stand.cli import main
+from stand.controller import ExperimentProfile, StandController, plan
+from stand.errors import LimitError
+from stand.ident.efficiency import efficiency
+from stand.ident.identify import identify_run
+from stand.procedures import simulate_procedure, simulate_stand_procedure
+from stand.profiles import load_motor, load_stand
+from stand.runfile import read_run
+
+SEED = 7
+#: Done criterion 1: bus and direct simulation identify to the same parameters within 1 %.
+SAME_PARAMETERS_RTOL = 0.01
+#: One encoder count of the 2500-line encoder (4x), rad: the bus may round a position
+#: across a count edge where the direct simulation did not (targets travel as integers).
+ONE_COUNT_RAD = 2 * math.pi / 10_000
+#: Current travels in per mille of the 1 A rated current: 1 mA steps.
+CURRENT_QUANTUM_A = 1e-3
+
+
+def test_stand_run_identifies_like_direct_simulation(can_config: BusConfig, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", "seed000_no_load", "-o", str(tmp_path), "--json", "--duration", "4",
+                 "--seed", str(SEED), "--interface", can_config.interface,
+                 "--channel", can_config.channel, "--simulate"])
+    assert code == 0
+    result = json.loads(capsys.readouterr().out)
+    (run,) = result["runs"]
+    assert run["complete"] and run["samples"] == 4000 and run["lost"] == {"1": 0}
+    assert Path(run["trace_path"]).stat().st_size > 0
+
+    experiment = ExperimentProfile(name="x", procedure="no_load", motor="crouzet_82800502",
+                                   repeats=1, duration_s=4.0, period_s=0.001)
+    (procedure, _), = plan(experiment)
+    direct = simulate_procedure(procedure, load_motor("crouzet_82800502"), seed=SEED)
+    over_bus = read_run(run["path"])
+    a, b = identify_run(direct), identify_run(over_bus)
+    for name in ("Kt_over_J", "D_over_J"):
+        assert getattr(b, name) == pytest.approx(getattr(a, name), rel=SAME_PARAMETERS_RTOL), name
+    assert np.max(np.abs(over_bus["position_rad"] - direct["position_rad"])) <= ONE_COUNT_RAD * 1.01
+    assert np.median(np.abs(over_bus["current_A"] - direct["current_A"])) <= CURRENT_QUANTUM_A
+
+
+def test_two_drive_efficiency_run_matches_direct_simulation(can_config: BusConfig,
+                                                            tmp_path: Path) -> None:
+    experiment = ExperimentProfile(name="eff", procedure="efficiency", stand="cycloidal_two_motor",
+                                   duration_s=3.0)
+    with StandBus("cycloidal_two_motor", can_config, simulate=True, seed=SEED) as bus:
+        record = StandController(bus).run_experiment(experiment, tmp_path).runs[0]
+    assert record.complete and record.lost == {1: 0, 2: 0}
+    stand = load_stand("cycloidal_two_motor")
+    m_in, m_out = load_motor(stand.motor_in), load_motor(stand.motor_out)
+    (procedure, _), = plan(experiment)
+    direct = simulate_stand_procedure(procedure, stand, m_in, m_out, seed=SEED)
+    over_bus = read_run(record.path, "reducer")
+    k = m_in.motor.Kt
+    eta_direct = efficiency(direct, stand.reducer.ratio, k, k).efficiency
+    eta_bus = efficiency(over_bus, stand.reducer.ratio, k, k).efficiency
+    assert eta_bus == pytest.approx(eta_direct, rel=SAME_PARAMETERS_RTOL)
+
+
+def test_voltage_step_run_is_a_step_file(can_config: BusConfig, tmp_path: Path) -> None:
+    experiment = ExperimentProfile(name="step", procedure="voltage_step", motor="ms150_dcm150f",
+                                   duration_s=1.0, period_s=0.001, step_V=6.0, step_time_s=0.2)
+    with StandBus("ms150_dcm150f", can_config, simulate=True, seed=SEED) as bus:
+        record = StandController(bus).run_experiment(experiment, tmp_path).runs[0]
+    run = read_run(record.path, "step")
+    before, after = run["voltage_V"][:150], run["voltage_V"][-100:]
+    assert np.all(before == 0.0)
+    assert np.allclose(after, 6.0, atol=1e-3)  # voltage travels in mV
+    assert run["velocity_rad_s"][-1] > 1.0  # the motor turns after the step
+
+
+def test_limits_are_checked_before_anything_is_sent(tmp_path: Path) -> None:
+    experiment = ExperimentProfile(name="hot", procedure="voltage_step", motor="ms150_dcm150f",
+                                   duration_s=0.5, period_s=0.001, step_V=12.0,
+                                   step_time_s=0.1)  # limit: 10 V
+    config = BusConfig("virtual", "test-limits")
+    with can.Bus(interface="virtual", channel=config.channel) as spy, \
+            StandBus("ms150_dcm150f", config, simulate=True) as bus:
+        while spy.recv(0.05) is not None:
+            pass  # the simulated drives' boot-up messages
+        with pytest.raises(LimitError, match="voltage command reaches 12 V"):
+            StandController(bus).run_experiment(experiment, tmp_path)
+        assert spy.recv(0.1) is None, "a frame was sent although the limit was exceeded"
+        assert bus.sim is not None and bus.sim.nodes[0].syncs == 0
+    assert not list(tmp_path.iterdir())
