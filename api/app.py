@@ -9,16 +9,23 @@ from __future__ import annotations
 import logging
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
+from typing import Any
 
 from fastapi import FastAPI
 
 from api import errors
+from api.limits import BodyLimit
 from api.routers import analysis, health, profiles, results, runs, stand
 from stand.jobs import ControllerRunner, JobManager, StandRunner
 from stand.settings import Settings, get_settings
 from stand.storage import Storage
 
 log = logging.getLogger("stand.api")
+
+#: Heartbeat period of drives simulated in this process, s. They share the CPU with the
+#: service (and, on a build machine, with everything else): a 100 ms heartbeat missed
+#: under load would abort runs although no drive failed. Real drives keep the bus default.
+SIMULATED_HEARTBEAT_PERIOD_S = 0.5
 
 DESCRIPTION = """Test-stand controller for DC motors and gear reducers (CANopen CiA 402).
 
@@ -36,9 +43,11 @@ def default_runner(settings: Settings) -> StandRunner:
     from bus.stand_bus import StandBus
 
     config = BusConfig(settings.bus_interface, settings.bus_channel, settings.bus_bitrate)
+    options: dict[str, Any] = (
+        {"heartbeat_period_s": SIMULATED_HEARTBEAT_PERIOD_S} if config.interface == "virtual" else {})
 
     def open_bus(profile: str, seed: int | None) -> StandBus:
-        return StandBus(profile, config, seed=seed)
+        return StandBus(profile, config, seed=seed, **options)
 
     return ControllerRunner(open_bus, settings.data_dir / "runs", settings.time_mode)
 
@@ -67,6 +76,7 @@ def create_app(settings: Settings | None = None,
     app = FastAPI(title="motorstand", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
     app.state.settings = settings
     errors.install(app)
+    app.add_middleware(BodyLimit, limit=settings.upload_limit_bytes)
     for router in (health.router, profiles.router, runs.router, analysis.router, results.router,
                    stand.router):
         app.include_router(router)

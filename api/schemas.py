@@ -19,7 +19,8 @@ class _Body(BaseModel):
 class RunRequest(_Body):
     """A job on the stand: an experiment profile plus what to change for this job.
 
-    ``overrides`` may change the experiment's ``repeats``, ``duration_s``, ``period_s``,
+    ``overrides`` may change the experiment's ``procedure`` (e.g. ``added_inertia`` on a
+    no-load experiment), ``repeats``, ``duration_s``, ``period_s``,
     ``added_inertia_kgm2``, ``load_current_A``, ``step_V``, ``step_time_s``, ``seed``;
     every command is checked against the motor profile's limits before anything moves
     (422). An experiment of several runs becomes one job per run (``runs``).

@@ -78,9 +78,20 @@ def open_bus(config: BusConfig) -> can.BusABC:
         ) from exc
 
 
-def connect_network(config: BusConfig) -> canopen.Network:
-    """A canopen network on ``config``'s bus, its reader thread started."""
-    network = canopen.Network(open_bus(config))
+class StandardFrameListener(canopen.network.MessageListener):
+    """Hands only 11-bit data frames to the network: CANopen uses no 29-bit identifiers
+    (CiA 301 §7.2.1), so an extended frame whose identifier equals a COB-ID is foreign."""
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if not msg.is_extended_id:
+            super().on_message_received(msg)
+
+
+def connect_network(config: BusConfig, network: canopen.Network | None = None) -> canopen.Network:
+    """``network`` (default: a new one) on ``config``'s bus, its reader thread started."""
+    network = network if network is not None else canopen.Network()
+    network.bus = open_bus(config)
+    network.listeners = [StandardFrameListener(network)]
     network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S
     network.connect()
     return network

@@ -67,7 +67,7 @@ class Drive:
         self.od = load_od(config.eds, config.node_id)
         self.node = canopen.RemoteNode(config.node_id, self.od)
         self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
-        self.node.sdo.MAX_RETRIES = 0
+        self.node.sdo.MAX_RETRIES = 1  # canopen counts the first try: one try, no retry
         network.add_node(self.node)
         self.network = network
         self.rpdo_cob_id = 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import math
 import struct
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -88,6 +89,11 @@ class SimDriveNode:
         self._on_write = on_write
         self.max_current_A = max_current_A
         self.heartbeat_muted = False
+        self.heartbeat_period_s = 0.0
+        self._heartbeat_due = 0.0
+        self._heartbeat_lock = threading.Lock()
+        # The node produces its own heartbeat (heartbeat_tick), not canopen's cyclic task.
+        self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.pdo_drop_every = 0  # fault injection: drop every n-th TPDO (0 = none)
         self._tpdo_count = 0
         self.syncs = 0  # SYNCs seen since power-on (stand time = syncs · period)
@@ -118,23 +124,41 @@ class SimDriveNode:
     def boot(self) -> None:
         """Send the boot-up message and enter PRE-OPERATIONAL (CiA 301 §7.2.8.3)."""
         nmt = self.node.nmt
-        nmt.stop_heartbeat()
         nmt._state = NMT_INITIALISING
         self.network.send_message(0x700 + self.id, bytes([0]))
         nmt._state = NMT_PRE_OPERATIONAL
         period_ms = struct.unpack("<H", self.node.get_data(0x1017, 0))[0]
-        if period_ms and not self.heartbeat_muted:
-            nmt.start_heartbeat(period_ms)
+        self._set_heartbeat(period_ms)
+
+    def _set_heartbeat(self, period_ms: int) -> None:
+        with self._heartbeat_lock:
+            self.heartbeat_period_s = period_ms / 1000.0
+            self._heartbeat_due = time.monotonic() + self.heartbeat_period_s
+
+    def heartbeat_tick(self, now: float) -> float | None:
+        """Send the heartbeat if it is due at ``now``; return when the next one is due.
+
+        Called from the SYNC handler and from the stand's heartbeat thread, whichever comes
+        first, as drive firmware polls its timers in its main loop.
+        """
+        with self._heartbeat_lock:
+            period = self.heartbeat_period_s
+            if not period or self.heartbeat_muted:
+                return None
+            if now >= self._heartbeat_due:
+                self.network.send_message(0x700 + self.id, bytes([self.nmt_state]))
+                self._heartbeat_due = max(self._heartbeat_due + period, now)
+            return self._heartbeat_due
 
     def close(self) -> None:
-        self.node.nmt.stop_heartbeat()
+        self.heartbeat_muted = True
         self.network.unsubscribe(0, self._on_nmt)
         self._resubscribe({})
 
     def mute_heartbeat(self) -> None:
         """Fault injection: stop producing heartbeats (the node otherwise keeps working)."""
-        self.heartbeat_muted = True
-        self.node.nmt.stop_heartbeat()
+        with self._heartbeat_lock:
+            self.heartbeat_muted = True
 
     # -- NMT ---------------------------------------------------------------------------
     def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
@@ -183,6 +207,8 @@ class SimDriveNode:
             self.mode = modes[value]
         elif index in (0x60FF, 0x6071, 0x2000):
             self.values[index] = int(value)
+        elif index == 0x1017:
+            self._set_heartbeat(int(value))
         elif 0x1400 <= index < 0x1C00:
             if self.nmt_state == NMT_OPERATIONAL:
                 raise SdoAbortedError(ABORT_GENERAL | 0x22)  # not in the present device state

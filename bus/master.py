@@ -22,7 +22,7 @@ import canopen
 import numpy as np
 
 from bus import cia402
-from bus.adapters import NOTIFIER_CYCLE_S, BusConfig, open_bus
+from bus.adapters import BusConfig, connect_network
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
 from bus.sampler import Sampler, Samples
 from bus.sync import SYNC_COB_ID, SYNC_COUNTER_OVERFLOW, RealtimeClock, SyncCounter, check_time_mode
@@ -35,6 +35,8 @@ log = logging.getLogger(__name__)
 HEARTBEAT_PERIOD_S = 0.1
 #: A heartbeat older than this many periods means the node is lost.
 HEARTBEAT_CONSUMER_FACTOR = 1.5
+#: On a silent bus, a heartbeat is lost after this many consumer times of wall time.
+SILENT_BUS_FACTOR = 2.0
 #: Time a drive may take to send its boot-up message after NMT reset node, s.
 BOOT_TIMEOUT_S = 2.0
 #: Lockstep: time the TPDOs of one SYNC may take before they count as lost, s. Generous:
@@ -72,6 +74,17 @@ class MasterNetwork(canopen.Network):
             trace.sent(msg)
 
 
+class BusClock(can.Listener):
+    """The newest frame stamp the bus reader has handed on (bus time), s."""
+
+    def __init__(self) -> None:
+        self.newest = 0.0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.timestamp > self.newest:
+            self.newest = msg.timestamp
+
+
 class Master:
     """The stand's CANopen master on one bus.
 
@@ -92,16 +105,20 @@ class Master:
         self.sdo_timeout_s = sdo_timeout_s
         self.pdo_timeout_s = pdo_timeout_s
         self.boot_timeout_s = boot_timeout_s
-        self.network = MasterNetwork(open_bus(self.config))
+        self.network = MasterNetwork()
         self.network.channel = self.config.channel
-        self.network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S
-        self.network.connect()
+        connect_network(self.config, self.network)
         self.drives: list[Drive] = []
-        self._heartbeat: dict[int, tuple[float, int]] = {}
+        self._heartbeat: dict[int, tuple[float, int, float]] = {}
+        self._bus_clock = BusClock()
+        assert self.network.notifier is not None
+        self.network.notifier.add_listener(self._bus_clock)
         self._booted: dict[int, threading.Event] = {}
         self._emcy: dict[int, list[tuple[float, int]]] = {}
         self._counters: dict[int, dict[str, int]] = {}
         self._quick_stop = threading.Event()
+        #: One counter for every SYNC the master sends (0x1019 is set on the drives).
+        self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self.running = False
         self.period_s = 0.0
         self.window = 0
@@ -112,7 +129,7 @@ class Master:
     def _on_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         node_id = can_id - 0x700
         state = data[0] & 0x7F if data else 0
-        self._heartbeat[node_id] = (time.monotonic(), state)
+        self._heartbeat[node_id] = (time.monotonic(), state, timestamp)
         if state == 0 and node_id in self._booted:
             self._booted[node_id].set()
 
@@ -128,7 +145,7 @@ class Master:
         for drive in self.drives:
             for cob_id, callback in ((0x700 + drive.id, self._on_heartbeat),
                                      (0x80 + drive.id, self._on_emcy)):
-                if cob_id in self.network.subscribers:
+                if callback in self.network.subscribers.get(cob_id, []):
                     self.network.unsubscribe(cob_id, callback)
             self.network.nodes.pop(drive.id, None)
         self.drives = []
@@ -148,6 +165,7 @@ class Master:
         self._forget_drives()
         self.period_s = period_s
         self._quick_stop.clear()
+        self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self.drives = [Drive(self.network, d, self.sdo_timeout_s) for d in drives]
         for drive in self.drives:
             self._booted[drive.id] = threading.Event()
@@ -187,12 +205,25 @@ class Master:
         return None if beat is None else time.monotonic() - beat[0]
 
     def _check_nodes(self) -> BusError | None:
+        """A heartbeat loss or an EMCY, or None.
+
+        A heartbeat is late when the bus has carried frames stamped more than the consumer
+        time after it (bus time: the stamps the interface puts on frames), so a reader thread
+        that the OS holds up for a while does not raise a false alarm; when the bus falls
+        silent altogether, wall time decides, after twice the consumer time.
+        """
         limit = HEARTBEAT_CONSUMER_FACTOR * self.heartbeat_period_s
+        newest = self._bus_clock.newest
         for drive in self.drives:
-            age = self.heartbeat_age_s(drive.id)
-            if age is not None and age > limit:
-                return HeartbeatLost(f"node {drive.id}: no heartbeat for {age:.3f} s (period "
-                                     f"{self.heartbeat_period_s} s); every drive was quick-stopped")
+            beat = self._heartbeat.get(drive.id)
+            if beat is None:
+                continue
+            received, _, stamp = beat
+            bus_age, wall_age = newest - stamp, time.monotonic() - received
+            if bus_age > limit or wall_age > SILENT_BUS_FACTOR * limit:
+                return HeartbeatLost(f"node {drive.id}: no heartbeat for {max(bus_age, wall_age):.3f} s "
+                                     f"(period {self.heartbeat_period_s} s); every drive was quick-stopped")
+        for drive in self.drives:
             if self._emcy.get(drive.id):
                 _, code = self._emcy[drive.id][-1]
                 return DriveFault(f"node {drive.id}: EMCY 0x{code:04X}; every drive was quick-stopped")
@@ -216,7 +247,7 @@ class Master:
             self._sync_cycles(max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
 
     def _sync_cycles(self, cycles: int) -> None:
-        counter = SyncCounter(0)
+        counter = self._sync_counter
         for _ in range(cycles):
             for d in self.drives:
                 if d.rpdo is not None:
@@ -259,7 +290,7 @@ class Master:
                   if d.rpdo is not None]
         self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
         clock = RealtimeClock(self.period_s) if time_mode == "realtime" else None
-        counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
+        counter = self._sync_counter
         send = self.network.send_message
         aborted: str | None = None
         error: BusError | None = None

@@ -5,12 +5,15 @@ A TPDO that does not come is counted as lost (its values stay NaN, never filled 
 second copy of the same TPDO in one window is counted as a duplicate and ignored — and if
 the window before lacked that TPDO, the first copy may have been its late answer, so the
 sample is dropped as well (counted late); a TPDO that arrives while no window is open
-(after the run's last window closed) is counted as late. Raw values are converted to SI units with each drive's :class:`~bus.eds.Scaling`.
+(after the run's last window closed) or that is stamped before the SYNC of the open window
+was sent (it answers an earlier SYNC; bus stamps, as python-can gives them) is counted as
+late. Raw values are converted to SI units with each drive's :class:`~bus.eds.Scaling`.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -25,6 +28,9 @@ FIELDS = {cia402.POSITION_ACTUAL: "position_rad", cia402.CURRENT_ACTUAL: "curren
           cia402.VELOCITY_ACTUAL: "velocity_rad_s", cia402.VOLTAGE_ACTUAL: "voltage_V",
           cia402.STATUSWORD: "statusword"}
 INT32_SPAN = 1 << 32
+#: Frame stamps within this much of ``time.time()`` share its epoch (interfaces whose
+#: stamps count from elsewhere are not compared), s.
+SAME_EPOCH_S = 60.0
 
 
 @dataclass
@@ -120,6 +126,7 @@ class Sampler:
         self.wall_s = np.zeros(samples)
         self.sync_counter = np.zeros(samples, dtype=np.int16)
         self.window = -1
+        self._opened_stamp = 0.0
         self._arrived = 0
         self.complete = threading.Event()
         self._lock = threading.Lock()
@@ -129,6 +136,7 @@ class Sampler:
     def open(self, k: int, wall_s: float, counter: int) -> None:
         """Open window ``k`` (just before SYNC ``k`` is sent)."""
         with self._lock:
+            self._opened_stamp = time.time()
             self.window = k
             self._arrived = 0
             self.complete.clear()
@@ -145,7 +153,9 @@ class Sampler:
         d, p, layout, names = self._plan[can_id]
         with self._lock:
             k = self.window
-            if k < 0:
+            if k < 0 or 0 < self._opened_stamp - timestamp < SAME_EPOCH_S:
+                # No window open, or the frame is stamped before this window's SYNC was
+                # sent: it answers an earlier SYNC.
                 self.late[d] += 1
                 return
             received = self.received[d]

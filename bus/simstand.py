@@ -18,6 +18,7 @@ import signal
 import struct
 import sys
 import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,10 @@ from stand.profiles import MotorProfile, StandProfile, load_motor, load_stand, r
 log = logging.getLogger(__name__)
 
 SYNC_COB_ID = 0x080
+#: The main thread of ``python -m bus.simstand`` looks for SIGTERM/SIGINT this often, s.
+SIGNAL_POLL_S = 0.2
+#: Longest sleep of the heartbeat thread while no node produces heartbeats, s.
+HEARTBEAT_IDLE_S = 0.05
 #: Over-current threshold as a multiple of the drive's current limit.
 OVER_CURRENT_FACTOR = 1.5
 
@@ -91,6 +96,16 @@ class SimStand:
         self.network.subscribe(SYNC_COB_ID, self._on_sync)
         for node in self.nodes:
             node.boot()
+        self._closing = threading.Event()
+        self._heartbeats = threading.Thread(target=self._produce_heartbeats,
+                                            name=f"simstand-heartbeat-{node_ids}", daemon=True)
+        self._heartbeats.start()
+
+    def _produce_heartbeats(self) -> None:
+        while not self._closing.is_set():
+            now = time.monotonic()
+            due = [d for d in (node.heartbeat_tick(now) for node in self.nodes) if d is not None]
+            self._closing.wait(max(0.0, min(due) - time.monotonic()) if due else HEARTBEAT_IDLE_S)
 
     def _current_plant(self) -> Plant:
         return self.plant
@@ -131,6 +146,9 @@ class SimStand:
             node.actuate()
         self.plant.advance(dt_s)
         self.syncs += 1
+        now = time.monotonic()
+        for node in self.nodes:
+            node.heartbeat_tick(now)
 
     def node(self, node_id: int) -> SimDriveNode:
         for node in self.nodes:
@@ -140,6 +158,8 @@ class SimStand:
 
     def close(self) -> None:
         """Stop heartbeats and the notifier, and shut the bus down."""
+        self._closing.set()
+        self._heartbeats.join()
         for node in self.nodes:
             node.close()
         self.network.unsubscribe(SYNC_COB_ID, self._on_sync)
@@ -168,7 +188,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     with SimStand(args.profile, BusConfig(args.interface, args.channel), args.seed, eds=args.eds) as sim:
         log.info("simulated drives %s on %s:%s", [n.id for n in sim.nodes], args.interface, args.channel)
         print("ready", flush=True)
-        done.wait()
+        while not done.wait(SIGNAL_POLL_S):
+            pass
     return 0
 
 

@@ -3,7 +3,8 @@
 - ``lockstep``: the next SYNC goes out as soon as every drive answered the last one, and
   simulated drives advance exactly one period per SYNC: deterministic, as fast as the bus.
 - ``realtime``: SYNCs follow a wall-clock period (deadlines on ``time.monotonic()``; the
-  last stretch before a deadline is spun, not slept, to keep the jitter low).
+  last stretch before a deadline is spent in ``time.sleep(0)``, which keeps the jitter low
+  and still lets the bus reader threads have the interpreter).
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from stand.errors import InputError
 SYNC_COB_ID = 0x080
 #: SYNC counter overflow value written to 0x1019 (1..240; 0 = no counter).
 SYNC_COUNTER_OVERFLOW = 240
-#: Below this much time to a deadline the clock spins instead of sleeping, s.
-SPIN_S = 1.5e-3
+#: Below this much time to a deadline the clock yields instead of sleeping, s.
+SPIN_S = 2e-4
 TIME_MODES = ("lockstep", "realtime")
 
 
@@ -67,7 +68,7 @@ class RealtimeClock:
         if remaining > SPIN_S:
             time.sleep(remaining - SPIN_S)
         while (now := time.monotonic()) < deadline:
-            pass
+            time.sleep(0)
         return now
 
 

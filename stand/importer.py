@@ -241,10 +241,12 @@ def map_columns(
         lengths = {len(v) for v in columns.values()}
         if lengths:
             columns["time_s"] = np.arange(max(lengths)) * float(period_s)
-    lengths_by_name = {name: len(values) for name, values in columns.items()}
-    if len(set(lengths_by_name.values())) > 1:
-        detail = ", ".join(f"{n} {k}" for n, k in lengths_by_name.items())
-        raise InputError(f"{source}: mapped columns differ in length ({detail})")
+    if len({len(values) for values in columns.values()}) > 1:
+        expressions = dict(mapping)
+        detail = ", ".join(f"{name}={expressions.get(name, f'k*{period_s}')} has {len(values)}"
+                           for name, values in columns.items())
+        raise InputError(f"{source}: mapped columns differ in length ({detail} samples); "
+                         "map variables of one record")
     try:
         run = check_columns(columns, kind, source)
     except RunFileError as exc:

@@ -17,14 +17,14 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
 from stand.errors import InputError, RunAborted, StandError
-from stand.storage import RunRecord, Storage
+from stand.storage import RunRecord, Storage, new_id
 
 log = logging.getLogger("stand.jobs")
 
@@ -101,6 +101,7 @@ class JobManager:
         self._current: str | None = None
         self._stop = threading.Event()
         self._cancelled: set[str] = set()
+        self._closing = False
         self._worker = threading.Thread(target=self._work, name="stand-jobs", daemon=True)
         self._worker.start()
 
@@ -109,8 +110,11 @@ class JobManager:
     def submit(self, request: Mapping[str, Any]) -> list[RunRecord]:
         """Check ``request`` and queue its runs; returns them (state ``queued``)."""
         plans = self.runner.plan(request)
+        job = new_id()
         records = [self.storage.create_run(plan.kind, "job", profile=plan.profile,
-                                           request=plan.request) for plan in plans]
+                                           request={**plan.request, "job": job})
+                   for plan in plans]
+        plans = [replace(plan, request={**plan.request, "job": job}) for plan in plans]
         with self._lock:
             for record, plan in zip(records, plans, strict=True):
                 self._plans[record.id] = plan
@@ -141,6 +145,7 @@ class JobManager:
     def close(self) -> None:
         """Stop the current run, let the worker end, close the runner."""
         with self._lock:
+            self._closing = True
             self._stop.set()
         self._queue.put(None)
         self._worker.join(CLOSE_TIMEOUT_S)
@@ -167,6 +172,15 @@ class JobManager:
                     self._current = None
                     self._plans.pop(run_id, None)
 
+    def _cancel_job(self, job: Any, reason: str) -> None:
+        """Cancel the queued runs of ``job`` (marked ``aborted`` with ``reason``)."""
+        with self._lock:
+            ids = [i for i, p in self._plans.items() if p.request.get("job") == job
+                   and i != self._current and i not in self._cancelled]
+            self._cancelled.update(ids)
+        for run_id in ids:
+            self.storage.update_run(run_id, state="aborted", message=reason)
+
     def _execute(self, run_id: str, plan: RunPlan) -> None:
         storage = self.storage
         storage.update_run(run_id, state="running")
@@ -185,13 +199,18 @@ class JobManager:
             outcome = self.runner.execute(run_id, plan, on_progress, on_chunk, self._stop)
         except RunAborted as exc:
             storage.update_run(run_id, state="aborted", message=str(exc))
+            self._cancel_job(plan.request.get("job"), f"an earlier run of this job aborted: {exc}")
         except StandError as exc:
             storage.update_run(run_id, state="failed", message=str(exc))
         except Exception as exc:  # a bug in a runner must not kill the worker
             log.exception("run %s failed", run_id)
             storage.update_run(run_id, state="failed", message=f"{type(exc).__name__}: {exc}")
         else:
-            if self._stop.is_set():
+            if self._closing:
+                storage.update_run(run_id, state="aborted", meta=outcome.meta,
+                                   message="the service shut down during the run; samples so far "
+                                           "are kept")
+            elif self._stop.is_set():
                 storage.update_run(run_id, state="stopped", meta=outcome.meta,
                                    message=outcome.message or "stopped by POST /stop (quick stop)")
             else:
@@ -203,7 +222,8 @@ class ControllerRunner:
     """The stand run by :class:`stand.controller.StandController` over the bus.
 
     A request names an experiment profile (``profiles/experiments``) and ``overrides``
-    of its fields (``repeats``, ``duration_s``, ``seed``, ...); it becomes one job per
+    of its fields (``procedure``, ``repeats``, ``duration_s``, ``seed``, ...; never the
+    motor or stand, whose profiles hold the limits); it becomes one job per
     run of the experiment (the torque-constant experiment: no-load and added-inertia
     runs, alternately). Run files and CAN traces go to ``runs_dir/<run id>/``.
 
@@ -235,7 +255,7 @@ class ControllerRunner:
         name = str(request.get("profile"))
         experiment = load_experiment(name)
         overrides = dict(request.get("overrides") or {})
-        for key in ("name", "procedure", "motor", "stand"):
+        for key in ("name", "motor", "stand"):
             if key in overrides:
                 raise InputError(f"overrides.{key}: cannot be changed by a request; choose another "
                                  "experiment profile (GET /profiles)")

@@ -26,7 +26,7 @@ from api.schemas import (
 )
 from api.uploads import parse_body
 from stand.jsonable import to_jsonable
-from stand.runfile import Run, RunKind
+from stand.runfile import RunKind
 from stand.storage import Storage
 
 router = APIRouter(tags=["analysis"])
@@ -139,4 +139,4 @@ for _op in OPERATIONS.values():
     router.add_api_route(f"/{_op.name}", _route(_op), methods=["POST"], dependencies=[Authorized],
                          openapi_extra=_openapi(_op), summary=(_op.model.__doc__ or "").split("\n")[0])
 
-__all__ = ["OPERATIONS", "Operation", "Run", "router"]
+__all__ = ["OPERATIONS", "Operation", "router"]

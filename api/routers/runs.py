@@ -20,6 +20,9 @@ from stand.storage import LIVE_STATES, RunRecord
 
 router = APIRouter(prefix="/runs", tags=["runs"])
 
+#: Largest list offset a query may ask for (SQLite integers are 64-bit).
+MAX_OFFSET = 10**12
+
 #: How often the event stream looks for new samples and progress, s.
 EVENT_POLL_S = 0.2
 #: Most samples sent in one ``samples`` event.
@@ -57,7 +60,7 @@ async def upload_run(storage: StorageDep, settings: SettingsDep, request: Reques
 @router.get("")
 async def list_runs(storage: StorageDep,
                     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-                    offset: Annotated[int, Query(ge=0)] = 0,
+                    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
                     state: Literal["queued", "running", "done", "stopped", "aborted", "failed"]
                     | None = None) -> list[dict[str, Any]]:
     """Stored runs, newest first."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from stand.ident.derivatives import DEFAULT_HALF_WIDTH, METHODS
+from stand.ident.derivatives import METHODS
 from stand.ident.identify import identify_run
 from stand.jsonable import to_jsonable
 from stand.runfile import read_run
@@ -18,8 +18,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(seed 000 §4.1)")
     parser.add_argument("--no-load-current", type=float, default=0.0, metavar="A",
                         help="no-load current subtracted from the measured current (§5.1), A")
-    parser.add_argument("--half-width", type=int, default=DEFAULT_HALF_WIDTH,
-                        help="half width of the default method's kernel, samples")
+    parser.add_argument("--half-width", type=int, default=None,
+                        help="half width of the default method's kernel, samples "
+                             "(default: chosen from the current's noise)")
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:

@@ -67,8 +67,8 @@ def plot(result: StepResult, runs: list[Run], path: str) -> Path:
     fig, axes = plt.subplots(2, rows, figsize=(6 * rows, 6), sharex=True, squeeze=False)
     channels = [("velocity_rad_s", "speed, rad/s")] + (
         [("current_A", "current, A")] if result.used_current else [])
-    for run in runs:
-        simulated = simulated_response(result, run)
+    for index, run in enumerate(runs):
+        simulated = simulated_response(result, run, index)
         for col, (name, label) in enumerate(channels):
             t = run.time_s - run.time_s[0]
             axes[0, col].plot(t, run[name], lw=0.6, label=f"measured {Path(run.source).name}")

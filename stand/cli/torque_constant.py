@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from stand.ident.derivatives import DEFAULT_HALF_WIDTH, METHODS
+from stand.ident.derivatives import METHODS
 from stand.ident.torque_constant import torque_constant
 from stand.jsonable import to_jsonable
 from stand.runfile import read_run
@@ -22,8 +22,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="derivatives: 'default' kernel filtering, 'paper' forward Euler")
     parser.add_argument("--no-compensation", action="store_true",
                         help="do not subtract the no-load current (seed 000 §5.1)")
-    parser.add_argument("--half-width", type=int, default=DEFAULT_HALF_WIDTH,
-                        help="half width of the default method's kernel, samples")
+    parser.add_argument("--half-width", type=int, default=None,
+                        help="half width of the default method's kernel, samples "
+                             "(default: chosen from the current's noise)")
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:

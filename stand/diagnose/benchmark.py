@@ -137,8 +137,12 @@ def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) ->
     plant = MotorPlant(case.motor, case.drive, case.sensors, Effects.from_mapping(case.effects),
                        seed=seed)
     samples = int(round(duration_s / case.dt_s))
-    command = excitation(case.kind, samples, case.dt_s, case.level, case.amplitude, case.hold,
-                         seed=seed)
+    hold, amplitude = case.hold, case.amplitude
+    if which:  # HOLDOUT is another experiment: other rate and excursion of the command
+        rng = np.random.default_rng([case.seed, case.index, 7])
+        hold = max(1, int(round(hold * _log_uniform(rng, 0.6, 1.6))))
+        amplitude *= rng.uniform(0.7, 1.3)
+    command = excitation(case.kind, samples, case.dt_s, case.level, amplitude, hold, seed=seed)
     run = simulate_motor(plant, case.mode, command, case.dt_s)
     return {k: run[k] for k in ("time_s", "current_A", "position_rad")}
 
@@ -163,6 +167,8 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
         "true_shrink": true_shrink, "seconds": elapsed, "samples": len(holdout),
         "mode": case.mode, "kind": case.kind, "dt_s": case.dt_s, "effects": case.effects,
+        "scores": {e.effect: {"shrink": e.shrink, "p": e.p_value, "consistent": e.consistent,
+                              "significant": e.significant} for e in result.effects},
     }
 
 

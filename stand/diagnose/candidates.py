@@ -35,15 +35,19 @@ MIN_GAP_RAD = 1e-4
 MAX_GAP_RAD = 0.3
 
 
-def _best(specs: list[ModelSpec], train: Signals, negative: str | None = None) -> ModelSpec:
-    """The spec of smallest equation-error RMS on ``train``; with ``negative``, only among
-    fits whose coefficient of that column is negative (the physical sign)."""
+#: What :func:`search` returns when no grid point gives a physical fit.
+NO_FIT = ModelSpec(input_weight=-1.0)
+
+
+def _best(specs: list[ModelSpec], train: Signals, positive: str | None = None) -> ModelSpec:
+    """The spec of smallest equation-error RMS on ``train``; with ``positive``, only among
+    fits whose coefficient of that column is positive (the physical sign)."""
     rms, coef = fit_residual_batch(specs, train)
-    if negative is not None:
-        column = specs[0].names().index(negative)
-        rms = np.where(coef[:, column] < 0, rms, np.inf)
+    if positive is not None:
+        column = specs[0].names().index(positive)
+        rms = np.where(coef[:, column] > 0, rms, np.inf)
         if not np.isfinite(rms).any():
-            return specs[0]
+            return NO_FIT
     return specs[int(np.argmin(rms))]
 
 
@@ -76,7 +80,7 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
         low = max(2 * train.quant_rad, MIN_GAP_RAD)
         grid = np.geomspace(low, max(MAX_GAP_RAD, 4 * low), GRID_POINTS)
         return _best([base.merged(ModelSpec(backlash_gap=float(g))) for g in grid], train,
-                     negative="load_accel")
+                     positive="free_current")
     raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 
@@ -94,6 +98,46 @@ def _phase(model: FittedModel, prefix: str) -> tuple[float, float]:
     return math.hypot(s, c), math.atan2(c, s)
 
 
+#: Largest ratio of an effect's size fitted on TRAIN and on HOLDOUT that still agrees.
+AGREE_RATIO = 3.0
+
+
+def _ratio_ok(a: float, b: float, limit: float = AGREE_RATIO) -> bool:
+    return a * b > 0 and max(abs(a), abs(b)) <= limit * min(abs(a), abs(b))
+
+
+def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
+    """Whether ``effect`` fitted on two independent runs is the same effect: the same
+    order or delay, and sizes (and grid parameters) of the same sign within
+    ``AGREE_RATIO``. A real effect is found again; one that fits a coincidence of TRAIN
+    is not."""
+    a, b = first.spec, second.spec
+    ca, cb = first.coef, second.coef
+    if NO_FIT in (a, b):
+        return False
+    if effect == "coulomb_friction":
+        return ca["sign"] < 0 and _ratio_ok(ca["sign"], cb["sign"])
+    if effect == "stribeck_friction":
+        sa, sb = ca["sign"] + ca["stribeck"], cb["sign"] + cb["stribeck"]
+        return (sa < 0 and _ratio_ok(sa, sb) and ca["stribeck"] < 0 and cb["stribeck"] < 0
+                and a.stribeck_ws is not None
+                and b.stribeck_ws is not None and _ratio_ok(a.stribeck_ws, b.stribeck_ws))
+    if effect == "current_offset":
+        return _ratio_ok(ca["one"], cb["one"])
+    if effect == "delay":
+        return a.delay == b.delay
+    if effect in ("cogging", "torque_ripple"):
+        prefix = "cog" if effect == "cogging" else "rip"
+        order_a = a.cogging_N if effect == "cogging" else a.ripple_N
+        order_b = b.cogging_N if effect == "cogging" else b.ripple_N
+        return order_a == order_b and _ratio_ok(_phase(first, prefix)[0], _phase(second, prefix)[0])
+    if effect == "backlash":
+        return (a.backlash_gap is not None and b.backlash_gap is not None
+                and ca["free_current"] > 0 and cb["free_current"] > 0
+                and _ratio_ok(a.backlash_gap, b.backlash_gap, 2 * AGREE_RATIO))
+    raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
+
+
 def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float | int | None]:
     """Physical parameters of ``effect`` in the fitted ``model``.
 
@@ -102,6 +146,8 @@ def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float
     """
     spec, c = model.spec, model.coef
     out: dict[str, float | int | None] = {}
+    if spec == NO_FIT:
+        return out
     if effect == "coulomb_friction":
         _torque(-c["sign"], model, kt, "Tc", out)
     elif effect == "stribeck_friction":
@@ -119,7 +165,7 @@ def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float
         out["k"] = spec.delay
     elif effect == "backlash":
         out["gap"] = spec.backlash_gap
-        out["J_load_over_J"] = max(-c["load_accel"], 0.0)
+        out["J_load_over_J"] = max(c["free_current"] / c["current"], 0.0)
         if kt is not None:
             out["J_load"] = out["J_load_over_J"] * kt / c["current"]
     elif effect == "torque_ripple":

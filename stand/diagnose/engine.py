@@ -7,6 +7,8 @@
 3. For every effect of the vocabulary, extend the model, pick the effect's
    hyper-parameters and identify it on TRAIN, simulate it on HOLDOUT: its gap, shrink,
    and a paired per-segment test of the improvement (:mod:`.significance`).
+   A candidate counts only when the same search on HOLDOUT finds the same effect
+   again (same order or delay, similar size: :func:`.candidates.agree`).
 4. Take the significant candidate with the smallest gap (a nested simpler candidate,
    Coulomb inside Stribeck, is kept unless the richer one is significantly better); then
    add further effects greedily while an addition still improves HOLDOUT significantly.
@@ -14,13 +16,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from stand.diagnose import candidates
+from stand.diagnose.candidates import NO_FIT
 from stand.diagnose.model import FittedModel, ModelSpec, Segments, fit, segments, simulate
-from stand.diagnose.model import equation_residual as _residual
+from stand.diagnose.model import equation_residual
 from stand.diagnose.report import Diagnosis, EffectScore
 from stand.diagnose.significance import PairedTest, paired_improvement
 from stand.diagnose.signals import Signals, prepare
@@ -44,6 +47,8 @@ class _Scored:
     model: FittedModel
     sse: np.ndarray
     gap: float
+    error: np.ndarray
+    consistent: bool = False
 
 
 class _Bench:
@@ -64,13 +69,56 @@ class _Bench:
         error = simulate(model, self.holdout, self.seg) - self.measured
         error = np.where(np.isfinite(error), error, 1e6 * self.scale)
         error = np.clip(error, -1e6 * self.scale, 1e6 * self.scale)
-        sse = np.sum(error**2, axis=1)
         gap = 100.0 * float(np.sqrt(np.mean(error**2))) / self.scale
-        return _Scored(spec, model, sse, gap)
+        residual = equation_residual(model, self.holdout)[self.seg.index]
+        sse = np.stack([np.sum(error**2, axis=1), np.sum(residual**2, axis=1)])
+        return _Scored(spec, model, sse, gap, error)
+
+    def candidate(self, effect: str, base: _Scored) -> _Scored:
+        """``base`` plus ``effect``, identified on TRAIN, scored on HOLDOUT, and checked
+        for consistency: the same search on HOLDOUT must find the same effect."""
+        spec = candidates.search(effect, base.spec, self.train)
+        if spec == NO_FIT:
+            return replace(base, spec=NO_FIT, consistent=False)
+        scored = self.score(spec)
+        again = candidates.search(effect, base.spec, self.holdout)
+        if again == NO_FIT:
+            return scored
+        consistent = candidates.agree(effect, scored.model, fit(again, self.holdout))
+        return replace(scored, consistent=consistent)
+
+
+@dataclass(frozen=True)
+class Traces:
+    """What the figures show, on the HOLDOUT samples covered by the segments.
+
+    Attributes
+    ----------
+    time_s : ndarray
+        Sample times, s, shape (segments, horizon).
+    measured, nominal, verdict : ndarray
+        Measured speed, the nominal model's and the verdict model's simulated speed, rad/s.
+    theta, omega : ndarray
+        Filtered position (rad) and velocity (rad/s) of HOLDOUT, full length.
+    residual : ndarray
+        Equation error of the nominal model on HOLDOUT, rad/s², full length.
+    dt_s : float
+        Sample period, s.
+    """
+
+    time_s: np.ndarray
+    measured: np.ndarray
+    nominal: np.ndarray
+    verdict: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    residual: np.ndarray
+    dt_s: float
 
 
 def diagnose(train: Run, holdout: Run, kt: float | None = None,
-             horizon_s: float = ANCHOR_HORIZON_S, max_effects: int = MAX_EFFECTS) -> Diagnosis:
+             horizon_s: float = ANCHOR_HORIZON_S, max_effects: int = MAX_EFFECTS,
+             spring: bool = False) -> Diagnosis:
     """Diagnose the sim-to-real gap of the nominal seed-000 model (CONTRACT §3).
 
     Parameters
@@ -85,6 +133,12 @@ def diagnose(train: Run, holdout: Run, kt: float | None = None,
         Free-run length between re-anchorings of the simulation, s.
     max_effects : int
         Most effects combined in the verdict.
+    spring : bool
+        Keep the torsion-spring term ``C·θ`` of seed 000 eq. 2 in the nominal model. Off
+        by default (``C = 0``): on a freely turning shaft the unwrapped angle grows
+        without bound and a spring fitted to it only stands in for other errors (a
+        constant torque over a position range away from zero, an inertia error under
+        sine motion, where ``θ'' ∝ −θ``). Turn it on for a shaft held by a spring.
 
     Returns
     -------
@@ -95,10 +149,19 @@ def diagnose(train: Run, holdout: Run, kt: float | None = None,
     InputError
         Runs that are too short, do not move, or have different sample periods.
     """
+    return diagnose_with_traces(train, holdout, kt, horizon_s, max_effects, spring)[0]
+
+
+def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
+                         horizon_s: float = ANCHOR_HORIZON_S, max_effects: int = MAX_EFFECTS,
+                         spring: bool = False) -> tuple[Diagnosis, Traces]:
+    """:func:`diagnose`, plus the :class:`Traces` the figures are drawn from."""
     if kt is not None and not kt > 0:
         raise InputError(f"kt must be a torque constant > 0 N·m/A, got {kt}")
     if horizon_s <= 0:
         raise InputError(f"horizon_s must be > 0 s, got {horizon_s}")
+    if max_effects < 1:
+        raise InputError(f"max_effects must be >= 1, got {max_effects}")
     tr, ho = prepare(train), prepare(holdout)
     if abs(tr.dt_s - ho.dt_s) > 0.01 * tr.dt_s:
         raise InputError(
@@ -106,36 +169,42 @@ def diagnose(train: Run, holdout: Run, kt: float | None = None,
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
     bench = _Bench(tr, ho, horizon_s)
-    nominal = _input_reconstruction(tr, horizon_s)
-    base = bench.score(nominal)
-    singles = {name: bench.score(candidates.search(name, nominal, tr))
-               for name in candidates.EFFECTS}
-    tests = {name: paired_improvement(base.sse, s.sse) for name, s in singles.items()}
+    base = bench.score(_nominal_spec(tr, horizon_s, spring))
+    singles = {name: bench.candidate(name, base) for name in candidates.EFFECTS}
     n_tests = len(singles)
-    scores = [
-        EffectScore(effect=name, gap_percent=s.gap, shrink=1.0 - s.gap / base.gap,
-                    significant=tests[name].significant(n_tests),
-                    params=candidates.params(name, s.model, kt), p_value=tests[name].p_value)
-        for name, s in singles.items()
-    ]
+    scores = []
+    for name, s in singles.items():
+        test = paired_improvement(base.sse, s.sse)
+        scores.append(EffectScore(
+            effect=name, gap_percent=s.gap, shrink=1.0 - s.gap / base.gap,
+            significant=s.consistent and test.significant(n_tests),
+            params=candidates.params(name, s.model, kt) if s.spec != NO_FIT else {},
+            p_value=test.p_value, consistent=s.consistent))
     scores.sort(key=lambda e: e.gap_percent)
-    chosen, final = _select(bench, base, singles, tests, max_effects)
+    chosen, final = _select(bench, base, singles, {e.effect: e for e in scores}, max_effects)
     verdict = "+".join(chosen) if chosen else "none"
     floor = _noise_floor(ho, bench.scale)
-    message = (f"gap {base.gap:.1f} % (noise floor {floor:.1f} %); verdict {verdict}"
+    message = (f"gap {base.gap:.1f} % (quantization floor {floor:.1f} %); verdict {verdict}"
                + (f", gap with it {final.gap:.1f} %" if chosen else ""))
+    residual = equation_residual(base.model, ho)
+    index = bench.seg.index
+    traces = Traces(time_s=index * ho.dt_s, measured=bench.measured,
+                    nominal=bench.measured + base.error, verdict=bench.measured + final.error,
+                    theta=ho.theta_f, omega=ho.omega_f, residual=residual, dt_s=ho.dt_s)
     return Diagnosis(
-        gap_percent=base.gap, where=locate(_residual(base.model, ho), ho), effects=scores,
-        verdict=verdict, verdict_gap_percent=final.gap, nominal=_nominal_dict(base.model, kt),
+        gap_percent=base.gap, where=locate(residual, ho),
+        effects=scores, verdict=verdict, verdict_gap_percent=final.gap,
+        verdict_params={name: candidates.params(name, final.model, kt) for name in chosen},
+        nominal=_nominal_dict(base.model, kt),
         anchoring={"method": "re-anchored to the filtered measured state every horizon_s",
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
-        noise_floor_percent=floor, message=message)
+        noise_floor_percent=floor, message=message), traces
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
-            tests: dict[str, PairedTest], max_effects: int) -> tuple[list[str], _Scored]:
-    significant = [n for n in singles if tests[n].significant(len(singles))]
+            scores: dict[str, EffectScore], max_effects: int) -> tuple[list[str], _Scored]:
+    significant = [n for n in singles if scores[n].significant]
     if not significant:
         return [], base
     first = min(significant, key=lambda n: singles[n].gap)
@@ -147,10 +216,9 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     while len(chosen) < max_effects:
         remaining = [n for n in candidates.EFFECTS if n not in chosen
                      and not (n == "coulomb_friction" and "stribeck_friction" in chosen)]
-        trials = {n: bench.score(candidates.search(n, current.spec, bench.train))
-                  for n in remaining}
-        passed = {n: s for n, s in trials.items()
-                  if paired_improvement(current.sse, s.sse).significant(len(trials))}
+        trials = {n: bench.candidate(n, current) for n in remaining}
+        passed = {n: s for n, s in trials.items() if s.consistent
+                  and paired_improvement(current.sse, s.sse).significant(len(trials))}
         if not passed:
             break
         best = min(passed, key=lambda n: passed[n].gap)
@@ -161,10 +229,10 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     return chosen, current
 
 
-def _input_reconstruction(train: Signals, horizon_s: float) -> ModelSpec:
+def _nominal_spec(train: Signals, horizon_s: float, spring: bool) -> ModelSpec:
     """The nominal model with the input reconstruction that simulates TRAIN best."""
     on_train = _Bench(train, train, horizon_s)
-    specs = [ModelSpec(input_weight=w) for w in INPUT_WEIGHTS]
+    specs = [ModelSpec(input_weight=w, spring=spring) for w in INPUT_WEIGHTS]
     return min(specs, key=lambda spec: on_train.score(spec).gap)
 
 
@@ -178,7 +246,7 @@ def _nominal_dict(model: FittedModel, kt: float | None) -> dict[str, float]:
     b = model.coef["current"]
     out = {"Kt_over_J": b, "D_over_J": -model.c_omega, "C_over_J": -model.c_theta,
            "condition_number": model.condition_number,
-           "input_weight": model.spec.input_weight}
+           "input_weight": model.spec.input_weight, "spring": model.spec.spring}
     if kt is not None:
         J = kt / b
         out.update(J=J, D=-model.c_omega * J, C=-model.c_theta * J)

@@ -55,7 +55,12 @@ class ModelSpec:
     ripple_N : int or None
         Order of ``i·sin(Nθ)``, ``i·cos(Nθ)`` torque terms.
     backlash_gap : float or None
-        Half width of a dead zone to a load inertia, rad.
+        Half width of a dead zone to a load inertia, rad. The kinematic load estimate
+        (:func:`load_estimate`) tells when the load is carried (contact) and when the
+        motor moves alone in the gap; the regressor ``free_current`` (the current while
+        the motor is alone) measures how much lighter it is then: the coefficients of
+        the model are those of motor and load together, and alone every torque
+        accelerates ``1 + J_load/J`` times more, ``J_load/J = c_free / c_i``.
     input_weight : float
         How the current between two samples is reconstructed: over the period from
         sample ``n`` to ``n + 1`` it is ``(1 − w)·i[n] + w·i[n + 1]``. ``0.5`` is the
@@ -63,6 +68,9 @@ class ModelSpec:
         current loop much faster than the sample period (the current settles at the
         next sample's value right after each sample). Part of the nominal model's input
         reconstruction, picked once on TRAIN and shared by every candidate.
+    spring : bool
+        Whether the ``C·θ`` term of seed 000 is in the model (``C = 0`` otherwise; see
+        :func:`stand.diagnose.engine.diagnose`).
     """
 
     delay: int = 0
@@ -73,6 +81,7 @@ class ModelSpec:
     ripple_N: int | None = None
     backlash_gap: float | None = None
     input_weight: float = 0.5
+    spring: bool = False
 
     def names(self) -> list[str]:
         """Names of the input columns ``u`` (``current`` first)."""
@@ -88,7 +97,7 @@ class ModelSpec:
         if self.ripple_N is not None:
             out += ["rip_sin", "rip_cos"]
         if self.backlash_gap is not None:
-            out.append("load_accel")
+            out.append("free_current")
         return out
 
     def merged(self, other: ModelSpec) -> ModelSpec:
@@ -101,7 +110,7 @@ class ModelSpec:
             ripple_N=other.ripple_N if other.ripple_N is not None else self.ripple_N,
             backlash_gap=(other.backlash_gap if other.backlash_gap is not None
                           else self.backlash_gap),
-            input_weight=self.input_weight,
+            input_weight=self.input_weight, spring=self.spring,
         )
 
 
@@ -131,6 +140,7 @@ class FittedModel:
     residual_rms: float
     condition_number: float
     samples: int
+    c_theta_se: float = 0.0
 
 
 def shifted(values: np.ndarray, k: int) -> np.ndarray:
@@ -200,8 +210,9 @@ def regressors(spec: ModelSpec, sig: Signals) -> dict[str, np.ndarray]:
         cols["rip_sin"] = current * np.sin(spec.ripple_N * theta)
         cols["rip_cos"] = current * np.cos(spec.ripple_N * theta)
     if spec.backlash_gap is not None:
-        _, omega_l = load_estimate(theta, omega, spec.backlash_gap, sig.dt_s)
-        cols["load_accel"] = np.gradient(omega_l, sig.dt_s)
+        theta_l, _ = load_estimate(theta, omega, spec.backlash_gap, sig.dt_s)
+        free = np.abs(theta - theta_l) < spec.backlash_gap * (1 - 1e-9)
+        cols["free_current"] = current * free
     return cols
 
 
@@ -216,8 +227,11 @@ def _stack(spec: ModelSpec, sig: Signals) -> tuple[np.ndarray, np.ndarray, np.nd
     u = np.column_stack([cols[name] for name in spec.names()])
     u_f = sig.filt(u)
     keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
-    x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
-    xdot = np.column_stack([sig.omega_f, sig.accel_f])[keep]
+    if spec.spring:
+        x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
+        xdot = np.column_stack([sig.omega_f, sig.accel_f])[keep]
+    else:  # the velocity row alone: x = [θ'], ẋ = [θ'']
+        x, xdot = sig.omega_f[keep, None], sig.accel_f[keep, None]
     return xdot, x, u_f[keep]
 
 
@@ -230,19 +244,21 @@ def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
         The run does not determine the model.
     """
     xdot, x, u = _stack(spec, sig)
-    sums = QSums.zeros(2, u.shape[1]).add(xdot, x, u, sig.dt_s)
+    sums = QSums.zeros(x.shape[1], u.shape[1]).add(xdot, x, u, sig.dt_s)
     result = solve(sums)
-    A, B = np.asarray(result.A), np.asarray(result.B)
+    A, B = np.asarray(result.A)[-1], np.asarray(result.B)[-1]
     names = spec.names()
-    coef = {name: float(B[1, j]) for j, name in enumerate(names)}
+    coef = {name: float(B[j]) for j, name in enumerate(names)}
     if not coef["current"] > 0 and spec == ModelSpec():
         raise NotExcitedError(
             f"{sig.source}: the identified gain from current to acceleration is "
             f"{coef['current']:.3g}, not positive; check the sign of current_A against "
             "position_rad, or excite the motor more"
         )
-    return FittedModel(spec=spec, c_theta=float(A[1, 0]), c_omega=float(A[1, 1]), coef=coef,
-                       residual_rms=float(np.asarray(result.residual_rms)[1]),
+    c_theta_se = float(np.asarray(result.A_se)[-1, 0]) if spec.spring else 0.0
+    return FittedModel(spec=spec, c_theta=float(A[0]) if spec.spring else 0.0,
+                       c_omega=float(A[-1]), coef=coef, c_theta_se=c_theta_se,
+                       residual_rms=float(np.asarray(result.residual_rms)[-1]),
                        condition_number=float(result.condition_number),
                        samples=int(result.samples))
 
@@ -259,10 +275,10 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
     xdot = np.stack([s[0][:n] for s in stacks])
     x = np.stack([s[1][:n] for s in stacks])
     u = np.stack([s[2][:n] for s in stacks])
-    sums = QSums.zeros(2, u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
+    sums = QSums.zeros(x.shape[2], u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
     result = solve(sums, check=False)
-    rms = np.asarray(result.residual_rms)[:, 1]
-    return np.where(np.isfinite(rms), rms, np.inf), np.asarray(result.B)[:, 1, :]
+    rms = np.asarray(result.residual_rms)[:, -1]
+    return np.where(np.isfinite(rms), rms, np.inf), np.asarray(result.B)[:, -1, :]
 
 
 def equation_residual(model: FittedModel, sig: Signals) -> np.ndarray:
@@ -309,7 +325,7 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     drive = current[seg.index]
     st = _State(sig.theta_f[seg.starts].copy(), sig.omega_f[seg.starts].copy())
     gap = spec.backlash_gap
-    ratio = max(-c.get("load_accel", 0.0), 0.0)
+    ratio = max(c.get("free_current", 0.0) / c["current"], 0.0)
     if gap is not None:
         tl, wl = load_estimate(sig.theta_f, sig.omega_f, gap, dt)
         st.theta_l, st.omega_l = tl[seg.starts].copy(), wl[seg.starts].copy()
@@ -353,7 +369,7 @@ def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: boo
         level = fc + fs * np.exp(-((omega / ws) ** 2)) if friction else 0.0
         a_motor = a - level * np.sign(omega)
         side = np.where(side * a_motor > 0, side, 0.0)
-        scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
+        scale = np.where(side != 0, 1.0, 1.0 + ratio)
     if friction:
         level = fc + fs * np.exp(-((omega / ws) ** 2))
         moving = omega != 0.0

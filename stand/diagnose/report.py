@@ -24,6 +24,8 @@ class EffectScore:
         Fitted parameters in physical units (see :func:`stand.diagnose.candidates.params`).
     p_value : float
         One-sided p-value of the improvement.
+    consistent : bool
+        The same search on HOLDOUT finds the same effect (order, delay, similar size).
     """
 
     effect: str
@@ -32,6 +34,7 @@ class EffectScore:
     significant: bool
     params: dict[str, float | int | None]
     p_value: float
+    consistent: bool
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,8 @@ class Diagnosis:
         The effect (or ``+``-joined effects, best first) that explains the gap, or ``none``.
     verdict_gap_percent : float
         Holdout gap of the model with the verdict's effects, %.
+    verdict_params : dict
+        Parameters of each effect of the verdict, fitted together.
     nominal : dict
         The nominal model identified on TRAIN (``Kt_over_J`` 1/(A·s²)... per J).
     anchoring : dict
@@ -95,6 +100,7 @@ class Diagnosis:
     effects: list[EffectScore]
     verdict: str
     verdict_gap_percent: float
+    verdict_params: dict[str, dict[str, float | int | None]]
     nominal: dict[str, float]
     anchoring: dict[str, float | int | str]
     noise_floor_percent: float

@@ -28,6 +28,10 @@ FILTER_FRACTION_OF_NYQUIST = 0.2
 FILTER_ORDER = 2
 #: Fewest samples a run needs for a diagnosis.
 MIN_DIAGNOSE_SAMPLES = 200
+#: The smallest position change seen is tried as 1 .. this many encoder counts.
+MAX_COUNT_DIVISOR = 64
+#: Largest distance from the grid, in counts, of a position that lies on it.
+GRID_TOLERANCE = 0.05
 
 
 @dataclass(frozen=True)
@@ -83,15 +87,21 @@ def central_difference(values: np.ndarray, dt_s: float) -> np.ndarray:
 
 
 def quantization_step(theta: np.ndarray) -> float:
-    """Smallest common non-zero position step (the encoder count), 0 if none is seen."""
-    steps = np.abs(np.diff(theta))
-    steps = steps[steps > 1e-12 * max(1.0, float(np.max(np.abs(theta))))]
+    """The encoder count: the largest step on whose grid (nearly) every position lies,
+    0 if the position is not quantized. The smallest distance between two positions
+    visited is tried as 1 .. ``MAX_COUNT_DIVISOR`` counts."""
+    steps = np.diff(np.unique(theta))
+    steps = steps[steps > 1e-9 * max(1.0, float(np.max(np.abs(theta))))]
     if steps.size < 10:
         return 0.0
     smallest = float(np.min(steps))
-    ratio = steps / smallest
-    on_grid = np.mean(np.abs(ratio - np.round(ratio)) < 0.02)
-    return smallest if on_grid > 0.95 else 0.0
+    offsets = theta - theta[0]
+    for divisor in range(1, MAX_COUNT_DIVISOR + 1):
+        step = smallest / divisor
+        ratio = offsets / step
+        if np.mean(np.abs(ratio - np.round(ratio)) < GRID_TOLERANCE) > 0.95:
+            return step
+    return 0.0
 
 
 def prepare(run: Run) -> Signals:
@@ -119,3 +129,13 @@ def prepare(run: Run) -> Signals:
                    omega_meas=central_difference(theta, dt), theta_f=theta_f,
                    omega_f=omega_f, accel_f=accel_f, quant_rad=quantization_step(theta),
                    source=run.source)
+
+
+def correlation_time(x: np.ndarray) -> float:
+    """Integrated autocorrelation time of ``x`` in samples (at least 1)."""
+    spectrum = np.abs(np.fft.rfft(x - x.mean(), 2 * len(x))) ** 2
+    acf = np.fft.irfft(spectrum)[: len(x)]
+    acf /= acf[0] if acf[0] else 1.0
+    first_negative = np.flatnonzero(acf < 0)
+    stop = int(first_negative[0]) if first_negative.size else len(acf)
+    return max(1.0, 1.0 + 2.0 * float(np.sum(acf[1:stop])))

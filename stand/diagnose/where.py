@@ -23,7 +23,7 @@ import numpy as np
 from scipy import signal as sps
 
 from stand.diagnose.report import Where
-from stand.diagnose.signals import Signals
+from stand.diagnose.signals import Signals, correlation_time
 
 REGIMES: tuple[str, ...] = ("low_speed", "reversal", "high_speed", "acceleration", "steady")
 #: Speeds below this fraction of the 95th-percentile speed count as low speed.
@@ -104,20 +104,10 @@ def _lag(residual: np.ndarray, current: np.ndarray, dt_s: float) -> float | None
                      for k in lags]) / scale
     best = int(np.argmax(np.abs(corr)))
     # Standard error of a correlation of two coloured series: 1/sqrt(effective samples).
-    effective = n / max(1.0, _correlation_time(r) * _correlation_time(i))
+    effective = n / max(1.0, correlation_time(r) * correlation_time(i))
     if abs(corr[best]) < LAG_SIGMAS / math.sqrt(effective):
         return None
     return float(lags[best] * dt_s)
-
-
-def _correlation_time(x: np.ndarray) -> float:
-    """Integrated autocorrelation time of ``x`` in samples (at least 1)."""
-    spectrum = np.abs(np.fft.rfft(x - x.mean(), 2 * len(x))) ** 2
-    acf = np.fft.irfft(spectrum)[: len(x)]
-    acf /= acf[0] if acf[0] else 1.0
-    first_negative = np.flatnonzero(acf < 0)
-    stop = int(first_negative[0]) if first_negative.size else len(acf)
-    return max(1.0, 1.0 + 2.0 * float(np.sum(acf[1:stop])))
 
 
 def locate(residual: np.ndarray, sig: Signals) -> Where:

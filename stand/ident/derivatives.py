@@ -30,11 +30,18 @@ import numpy as np
 from scipy import ndimage
 
 from stand.errors import InputError
+from stand.ident.noise import noise_sigma
 
 Method = Literal["default", "paper"]
 METHODS: tuple[str, ...] = ("default", "paper")
 #: Half width of the default kernel, samples (its support is 2·HALF_WIDTH + 1 samples).
 DEFAULT_HALF_WIDTH = 8
+#: Largest share of the filtered input's variance that its filtered white noise may have
+#: when the half width is chosen automatically; it bounds the errors-in-variables bias
+#: of the input's coefficient (Kt/J) to about this fraction.
+MAX_NOISE_FRACTION = 0.01
+#: Longest automatic half width as a fraction of the record.
+MAX_HALF_WIDTH_FRACTION = 0.05
 #: Smallest half width that still samples g'' with its two lobes, samples.
 MIN_HALF_WIDTH = 2
 #: Power of the kernel (1 − s²)^KERNEL_POWER; 4 makes g'' vanish smoothly at the ends.
@@ -56,7 +63,8 @@ class States:
     inputs : ndarray, shape (..., samples, nu)
         Inputs treated as ``theta`` (filtered for ``default``), in their own units.
     first : int
-        Index of the first input sample the rows correspond to (centre for ``default``).
+        Index of the first input sample the rows correspond to (centre for ``default``);
+        for ``default`` also the kernel's half width, samples.
     method : str
         The method used.
     """
@@ -116,6 +124,34 @@ def _moment_correction(w: np.ndarray, g: np.ndarray, tau: np.ndarray, dt_s: floa
     return np.asarray(np.linalg.solve(moments, error) @ basis)
 
 
+def auto_half_width(inputs: np.ndarray, noise: float) -> int:
+    """Smallest kernel half width at which the filtered input noise is negligible.
+
+    Tries half widths from ``DEFAULT_HALF_WIDTH`` upwards (×1.5 each) and returns the
+    first at which ``noise²·Σg²`` (the variance white noise of standard deviation
+    ``noise`` keeps after the kernel) is at most ``MAX_NOISE_FRACTION`` of the variance of
+    the filtered input; the longest tried is ``MAX_HALF_WIDTH_FRACTION`` of the record.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (samples,)
+        The input (e.g. current), in its unit.
+    noise : float
+        Standard deviation of its white noise, same unit.
+    """
+    u = np.asarray(inputs, dtype=float)
+    longest = max(DEFAULT_HALF_WIDTH, int(MAX_HALF_WIDTH_FRACTION * len(u)))
+    h = DEFAULT_HALF_WIDTH
+    while True:
+        g, _, _ = kernel(h, 1.0)                       # Σg = 1 at unit sample period
+        filtered = _convolve_valid(u, g, 1.0)
+        if noise**2 * float(np.sum(g * g)) <= MAX_NOISE_FRACTION * float(np.var(filtered)):
+            return h
+        if h >= longest:
+            return longest
+        h = min(longest, int(np.ceil(1.5 * h)))
+
+
 def _convolve_valid(signal: np.ndarray, weights: np.ndarray, dt_s: float) -> np.ndarray:
     """``Σ_j signal[k − j]·w[j]·Δt`` at the samples where the kernel fits, along axis -1."""
     h = (len(weights) - 1) // 2
@@ -124,7 +160,8 @@ def _convolve_valid(signal: np.ndarray, weights: np.ndarray, dt_s: float) -> np.
 
 
 def state_derivatives(position_rad: np.ndarray, inputs: np.ndarray, dt_s: float,
-                      method: str = "default", half_width: int = DEFAULT_HALF_WIDTH) -> States:
+                      method: str = "default", half_width: int | None = DEFAULT_HALF_WIDTH,
+                      noise: float | None = None) -> States:
     """States, derivatives and aligned inputs from a sampled angle.
 
     Parameters
@@ -137,8 +174,12 @@ def state_derivatives(position_rad: np.ndarray, inputs: np.ndarray, dt_s: float,
         Sample period, s.
     method : {'default', 'paper'}
         See the module docstring.
-    half_width : int
-        Half width of the ``default`` kernel, samples.
+    half_width : int or None
+        Half width of the ``default`` kernel, samples; ``None`` chooses it from the noise
+        of the first input (:func:`auto_half_width`).
+    noise : float, optional
+        White-noise standard deviation of the first input for the automatic half width
+        (default: estimated from its sample-to-sample differences).
 
     Returns
     -------
@@ -160,6 +201,9 @@ def state_derivatives(position_rad: np.ndarray, inputs: np.ndarray, dt_s: float,
         alpha = np.diff(omega, axis=-1) / dt_s
         m = n - 2
         return States(theta[..., :m], omega[..., :m], alpha, u[..., :m, :], 0, "paper")
+    if half_width is None:
+        first = u.reshape(-1, n, u.shape[-1])[0, :, 0]
+        half_width = auto_half_width(first, noise_sigma(first) if noise is None else noise)
     if n < 2 * half_width + 2:
         half_width = max(MIN_HALF_WIDTH, (n - 2) // 2)
     g, g1, g2 = kernel(half_width, dt_s)

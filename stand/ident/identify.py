@@ -14,16 +14,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import chi2
 
 from stand.errors import NotExcitedError
-from stand.ident.derivatives import DEFAULT_HALF_WIDTH, state_derivatives
+from stand.ident.derivatives import state_derivatives
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
 from stand.runfile import Run
 
-#: The current must vary by more than this many times its white-noise level: a constant
-#: current cannot separate Kt·i from constant torques (Coulomb friction, an offset).
-CURRENT_EXCITATION_SIGMA = 3.0
+#: Blocks the current is split into to test that it varies beyond its noise.
+EXCITATION_BLOCKS = 20
+#: Significance level of that test: a current whose block means vary no more than white
+#: noise would make them, at this level, counts as constant.
+EXCITATION_SIGNIFICANCE = 1e-3
 #: Largest relative standard error of Kt/J for which a run counts as exciting the model;
 #: beyond it the current carries no information distinguishable from noise (e.g. a
 #: constant current at a constant speed).
@@ -60,6 +63,8 @@ class IdentifyResult:
         Sample period, s.
     no_load_current_A : float
         Current subtracted from the measured current, A.
+    half_width : int
+        Half width of the default method's kernel, samples (0 for ``paper``).
     """
 
     A: list[list[float]]
@@ -76,10 +81,37 @@ class IdentifyResult:
     method: str
     dt_s: float
     no_load_current_A: float
+    half_width: int
+
+
+def _check_current_varies(current: np.ndarray, source: str) -> None:
+    """Refuse a current that is constant but for noise (it cannot separate Kt·i from
+    constant torques such as Coulomb friction or an offset).
+
+    The run is cut into ``EXCITATION_BLOCKS`` blocks of ``b`` samples; under "constant plus
+    white noise of standard deviation σ" the variance of the block means times ``b/σ²``
+    is χ²-distributed with ``blocks − 1`` degrees of freedom divided by them. The current
+    must exceed its upper ``EXCITATION_SIGNIFICANCE`` quantile. σ comes from the
+    sample-to-sample differences, so slow variation (the signal) does not inflate it.
+    """
+    blocks = min(EXCITATION_BLOCKS, len(current) // 2)
+    b = len(current) // blocks
+    means = current[: blocks * b].reshape(blocks, b).mean(axis=1)
+    sigma = noise_sigma(current)
+    observed = float(np.var(means, ddof=1))
+    limit = chi2.ppf(1 - EXCITATION_SIGNIFICANCE, blocks - 1) / (blocks - 1) * sigma**2 / b
+    if not observed > limit:
+        raise NotExcitedError(
+            f"{source}: current_A is constant but for its noise ({sigma:.3g} A): the means of "
+            f"{blocks} blocks of {b} samples vary by {np.sqrt(observed):.3g} A, not beyond the "
+            f"{np.sqrt(limit):.3g} A noise explains; a constant current cannot separate Kt "
+            "from constant torques; excite the motor with a varying command (e.g. a "
+            "band-limited or PRBS speed command)"
+        )
 
 
 def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0.0,
-                 half_width: int = DEFAULT_HALF_WIDTH) -> IdentifyResult:
+                 half_width: int | None = None) -> IdentifyResult:
     """Identify A and B of one single-motor run by seed 000 eq. 10.
 
     Parameters
@@ -90,8 +122,9 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
         Derivatives: kernel filtering or the paper's forward Euler differences.
     no_load_current_A : float
         No-load current subtracted from the measured current (§5.1), A.
-    half_width : int
-        Half width of the default kernel, samples.
+    half_width : int or None
+        Half width of the default kernel, samples; ``None`` (default) chooses it from the
+        current's noise (:func:`~stand.ident.derivatives.auto_half_width`).
 
     Raises
     ------
@@ -106,14 +139,7 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
             "excite the model; command a varying speed"
         )
     measured = run["current_A"]
-    spread, noise = float(np.std(measured)), noise_sigma(measured)
-    if not spread > CURRENT_EXCITATION_SIGMA * noise:
-        raise NotExcitedError(
-            f"{run.source}: current_A varies by {spread:.3g} A (standard deviation), no more "
-            f"than {CURRENT_EXCITATION_SIGMA:g} times its noise {noise:.3g} A: a constant "
-            "current cannot separate Kt from constant torques; excite the motor with a "
-            "varying command (e.g. a band-limited or PRBS speed command)"
-        )
+    _check_current_varies(measured, run.source)
     current = measured - no_load_current_A
     states = state_derivatives(position, current, dt, method, half_width)
     sums = QSums.zeros(2, 1).add(states.xdot, states.x, states.inputs, dt)
@@ -124,9 +150,9 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
     b2, b2_se = float(q.B[1, 0]), float(q.B_se[1, 0])
     if not abs(b2) > MAX_RELATIVE_SE ** -1 * b2_se:
         raise NotExcitedError(
-            f"{run.source}: Kt/J = {b2:.4g} ± {b2_se:.2g}: the current does not excite the "
-            "model beyond its noise; use a varying command such as a band-limited or PRBS "
-            "speed command"
+            f"{run.source}: Kt/J = {b2:.4g} ± {b2_se:.2g}: the run does not determine Kt/J "
+            f"(relative standard error above {MAX_RELATIVE_SE:.0%}); excite the motor more "
+            "(larger or faster command changes, a longer run) or use the default method"
         )
     return IdentifyResult(
         A=q.A.tolist(), B=q.B.tolist(),
@@ -134,4 +160,5 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
         Kt_over_J_se=b2_se, D_over_J_se=float(q.A_se[1, 1]), C_over_J_se=float(q.A_se[1, 0]),
         fit_percent=float(q.fit_percent[1]), condition_number=float(q.condition_number),
         samples=int(q.samples), method=method, dt_s=dt, no_load_current_A=no_load_current_A,
+        half_width=states.first if method == "default" else 0,
     )

@@ -36,6 +36,8 @@ from stand.errors import InputError, NotExcitedError
 COND_LIMIT = 1e10
 #: Values stacked per chunk by :meth:`QSums.add` (about 1 MB: stays in cache).
 CHUNK_VALUES = 1 << 17
+#: Fewest samples per chunk (keeps the per-chunk overhead small for large batches).
+MIN_CHUNK_SAMPLES = 512
 #: Fewest samples beyond the number of unknowns per row (residual degrees of freedom).
 MIN_DOF = 3
 
@@ -129,15 +131,14 @@ class QSums:
                 )
         batch = np.broadcast_shapes(xdot.shape[:-2], x.shape[:-2], u.shape[:-2])
         runs = int(np.prod(batch, dtype=np.int64))
-        step = max(1, CHUNK_VALUES // max(1, runs * self.width))
+        step = max(MIN_CHUNK_SAMPLES, CHUNK_VALUES // max(1, runs * self.width))
         w = np.empty((*batch, min(n, step), self.width))
         w[..., -1] = 1.0
-        cols = ((0, self.nx, xdot), (self.nx, 2 * self.nx, x), (2 * self.nx, self.width - 1, u))
+        parts = [np.broadcast_to(a, (*batch, n, a.shape[-1])) for a in (xdot, x, u)]
         for start in range(0, n, step):  # stacked chunk by chunk: bounded, cache-sized copy
-            stop = min(n, start + step)
-            chunk = w[..., :stop - start, :]
-            for a, b, values in cols:
-                chunk[..., a:b] = values[..., start:stop, :]
+            chunk = w[..., :min(n, start + step) - start, :]
+            np.concatenate([a[..., start:start + step, :] for a in parts], axis=-1,
+                           out=chunk[..., :-1])
             self.add_stacked(chunk, dt_s)
         return self
 

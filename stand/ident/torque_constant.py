@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stand.errors import InputError
-from stand.ident.derivatives import DEFAULT_HALF_WIDTH, state_derivatives
+from stand.ident.derivatives import state_derivatives
 from stand.ident.identify import IdentifyResult, identify_run
 from stand.runfile import Run
 
@@ -85,7 +85,7 @@ def kt_from_pair(b2_no_load: float, b2_loaded: float, added_inertia: float) -> f
 
 
 def no_load_current(run: Run, method: str = "default",
-                    half_width: int = DEFAULT_HALF_WIDTH) -> float:
+                    half_width: int | None = None) -> float:
     """No-load current of one no-load run, A.
 
     The current at zero acceleration: the intercept ``i0`` of the least-squares line
@@ -103,7 +103,7 @@ def no_load_current(run: Run, method: str = "default",
 
 def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
                     added_inertia: float, method: str = "default", compensate: bool = True,
-                    half_width: int = DEFAULT_HALF_WIDTH) -> TorqueConstantResult:
+                    half_width: int | None = None) -> TorqueConstantResult:
     """Kt, J, D, C from repeated no-load and added-inertia runs (eqs. 11-17, §5.1).
 
     Parameters

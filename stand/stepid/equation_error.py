@@ -22,6 +22,8 @@ from scipy.integrate import cumulative_trapezoid
 from stand.errors import NotExcitedError
 from stand.stepid.model import StepData
 
+#: A speed range beyond this many noise standard deviations counts as a response.
+EXCITED_NOISE_MULTIPLE = 10.0
 #: Weight of the equation of a channel whose noise cannot be estimated (noise-free data).
 NOISE_FLOOR_FRACTION = 1e-6
 
@@ -37,6 +39,13 @@ def noise_level(values: np.ndarray) -> float:
     sigma = 1.4826 * mad / np.sqrt(6.0)
     floor = NOISE_FLOOR_FRACTION * max(float(np.max(np.abs(values))), 1e-12)
     return max(sigma, floor)
+
+
+def _excited(run: StepData) -> bool:
+    """A voltage change, or a speed that moves beyond its noise (a run from a step instant)."""
+    speed = run.velocity_rad_s
+    return bool(np.ptp(run.voltage_V) > 0
+                or np.ptp(speed) > EXCITED_NOISE_MULTIPLE * noise_level(speed))
 
 
 def _voltage_integral(data: StepData, hold: str) -> np.ndarray:
@@ -82,9 +91,10 @@ def equation_error(data: Sequence[StepData], use_current: bool, hold: str) -> np
     M = np.vstack(blocks)
     y_all = np.concatenate(targets)
     scale = np.linalg.norm(M, axis=0)
-    if not np.all(scale[:n_coef] > 0) or all(np.ptp(run.voltage_V) == 0 for run in data):
+    if not np.all(scale[:n_coef] > 0) or not any(_excited(run) for run in data):
         raise NotExcitedError(
-            "the voltage never changes in any run; step identification needs a voltage step"
+            "the voltage never changes and the speed stays at one level in every run; "
+            "step identification needs a voltage step (or a run that starts at one)"
         )
     solution, *_ = np.linalg.lstsq(M / scale, y_all, rcond=None)
     return np.asarray(solution[:n_coef] / scale[:n_coef])

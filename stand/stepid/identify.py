@@ -67,6 +67,8 @@ class StepResult:
         Residual whiteness test per channel (``velocity_rad_s``, ``current_A``).
     start : dict
         The equation-error transfer function the fit started from.
+    initial_voltage_V : list of float
+        Per run, the voltage whose steady state the run starts in (0 for a run from rest), V.
     """
 
     transfer_function: dict[str, list[float]]
@@ -90,6 +92,7 @@ class StepResult:
     used_current: bool
     noise_std: dict[str, float]
     hold: str
+    initial_voltage_V: list[float]
     alternatives: list[dict[str, float]] = field(default_factory=list)
     message: str = ""
 
@@ -107,35 +110,41 @@ def _check_known(known: Mapping[str, float]) -> dict[str, float]:
 
 
 class _Problem:
-    """Scaled parameters ``θ = (log b0, log a1, log a0[, log c1, c0/c0_scale])``."""
+    """Scaled parameters: ``(log b0, log a1, log a0[, log c1, c0/c0_scale])`` then, per run,
+    the initial voltage over the largest voltage (the run starts in its steady state)."""
 
     def __init__(self, data: Sequence[StepData], start: np.ndarray, hold: str,
                  sigma: list[float]) -> None:
         self.data, self.hold, self.sigma = data, hold, sigma
         self.n = len(start)
         self.c0_scale = start[3] * start[2] / start[1] if self.n > 3 else 1.0
+        self.v_scale = max(float(np.max(np.abs(run.voltage_V))) for run in data) or 1.0
 
     def coefs(self, theta: np.ndarray) -> np.ndarray:
-        c = np.exp(theta)
+        c = np.exp(theta[:self.n])
         if self.n > 3:
             c[4] = theta[4] * self.c0_scale
         return c
 
-    def theta(self, coefs: np.ndarray) -> np.ndarray:
+    def initial_voltages(self, theta: np.ndarray) -> np.ndarray:
+        return theta[self.n:] * self.v_scale
+
+    def theta(self, coefs: np.ndarray, initial_voltages: np.ndarray) -> np.ndarray:
         t = np.log(np.abs(coefs))
         if self.n > 3:
             t[4] = coefs[4] / self.c0_scale
-        return t
+        return np.concatenate([t, initial_voltages / self.v_scale])
 
     def dcoefs_dtheta(self, theta: np.ndarray) -> np.ndarray:
-        d = np.exp(theta)
+        d = np.exp(theta[:self.n])
         if self.n > 3:
             d[4] = self.c0_scale
         return d
 
     def simulate(self, theta: np.ndarray) -> list[list[np.ndarray]]:
         c = self.coefs(theta)
-        return [respond(c, run, self.hold) for run in self.data]
+        return [respond(c, run, self.hold, v0)
+                for run, v0 in zip(self.data, self.initial_voltages(theta), strict=True)]
 
     def channels(self, run: StepData) -> list[np.ndarray]:
         return [run.velocity_rad_s] + ([run.current_A] if self.n > 3 and run.current_A is not None
@@ -147,6 +156,16 @@ class _Problem:
             for ch, (model, measured) in enumerate(zip(outputs, self.channels(run), strict=True)):
                 parts.append((model - measured) / self.sigma[ch])
         return np.concatenate(parts)
+
+
+#: Samples averaged for the initial speed of the start.
+INITIAL_SAMPLES = 5
+
+
+def _initial_voltages(data: Sequence[StepData], coefs: np.ndarray) -> np.ndarray:
+    """Start of each run's initial voltage: the one whose steady speed is the first speeds."""
+    return np.array([float(np.mean(run.velocity_rad_s[:INITIAL_SAMPLES])) * coefs[2] / coefs[0]
+                     for run in data])
 
 
 def _start(data: Sequence[StepData], use_current: bool, hold: str) -> tuple[np.ndarray, str]:
@@ -215,7 +234,7 @@ def identify_steps(runs: Sequence[Run], known: Mapping[str, float] | None = None
         sigma.append(float(np.median([noise_level(run.current_A) for run in data
                                       if run.current_A is not None])))
     problem = _Problem(data, coefs0, hold, sigma)
-    best = _fit(problem, problem.theta(coefs0), method)
+    best = _fit(problem, problem.theta(coefs0, _initial_voltages(data, coefs0)), method)
     nfev = best.nfev
     if with_current:
         rms = _channel_rms(problem, best.x)
@@ -242,11 +261,12 @@ def _result(problem: _Problem, best: Minimum, coefs0: np.ndarray, known: dict[st
             method: str, hold: str, nfev: int, elapsed_s: float, note: str) -> StepResult:
     theta = best.x
     coefs = problem.coefs(theta)
-    n_res, n_par = best.jacobian.shape
+    n_res, n_par = best.jacobian.shape  # n_par counts the initial voltages too
     dof = n_res - n_par
     s2 = float(best.residuals @ best.residuals) / max(dof, 1)
     d = problem.dcoefs_dtheta(theta)
-    cov = s2 * np.linalg.pinv(best.jacobian.T @ best.jacobian) * np.outer(d, d)
+    n = problem.n  # the coefficients' block of the covariance (initial voltages marginalized)
+    cov = s2 * np.linalg.pinv(best.jacobian.T @ best.jacobian)[:n, :n] * np.outer(d, d)
     coef_std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     physical = physical_estimate(coefs, cov, known)
     speed = [run.velocity_rad_s for run in problem.data]
@@ -301,14 +321,16 @@ def _result(problem: _Problem, best: Minimum, coefs0: np.ndarray, known: dict[st
         noise_std={"velocity_rad_s": problem.sigma[0],
                    **({"current_A": problem.sigma[1]} if problem.n > 3 else {})},
         hold=hold,
+        initial_voltage_V=[float(v) for v in problem.initial_voltages(theta)],
         alternatives=physical.alternatives,
         message=note.strip() or f"{method}: {best.message}",
     )
 
 
-def simulated_response(result: StepResult, run: Run) -> list[np.ndarray]:
-    """The identified model's speed (and current) for ``run``'s voltage, for plots."""
+def simulated_response(result: StepResult, run: Run, index: int = 0) -> list[np.ndarray]:
+    """The identified model's speed (and current) for ``run``, the ``index``-th identified run."""
     coefs = list(result.transfer_function["num"]) + list(result.transfer_function["den"][1:])
     if result.current_transfer_function is not None:
         coefs += list(result.current_transfer_function["num"])
-    return respond(np.array(coefs), step_data([run])[0], result.hold)
+    return respond(np.array(coefs), step_data([run])[0], result.hold,
+                   result.initial_voltage_V[index])

@@ -17,8 +17,9 @@ The response is computed exactly for a voltage held constant over each sample pe
 - ``"following"``: ``voltage_V[k]`` is applied over the period that starts at ``time_s[k]``,
   as a command log or a DAQ sampling the command before it acts.
 
-Every run is assumed to start in steady state at its first voltage (at rest for a step
-from 0 V).
+Every run is assumed to start in equilibrium: at rest, or at the steady speed of some
+voltage ``v_eq`` (its *initial voltage*, fitted per run, so a file may start at the step
+instant with the motor at rest, or in steady state at its first voltage).
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ def step_data(runs: Sequence[Run]) -> list[StepData]:
                     "velocity_rad_s (optional current_A)"
                 )
         time_s = run.time_s - run.time_s[0]
-        current = run["current_A"] if "current_A" in run else None
+        current = run.columns.get("current_A")
         data.append(StepData(time_s, run.dt_s, run["voltage_V"], run["velocity_rad_s"],
                              current, run.source))
     return data
@@ -167,7 +168,8 @@ def _discrete(coefs: np.ndarray, dt_s: float) -> tuple[np.ndarray, list[np.ndarr
     return den, nums
 
 
-def respond(coefs: np.ndarray, data: StepData, hold: str = "preceding") -> list[np.ndarray]:
+def respond(coefs: np.ndarray, data: StepData, hold: str = "preceding",
+            initial_voltage_V: float | None = None) -> list[np.ndarray]:
     """Model response of a run to its measured voltage.
 
     Parameters
@@ -178,6 +180,8 @@ def respond(coefs: np.ndarray, data: StepData, hold: str = "preceding") -> list[
         The run (its voltage and sample times).
     hold : {'preceding', 'following'}
         Which sample period a voltage sample belongs to (module docstring).
+    initial_voltage_V : float, optional
+        The voltage whose steady state the run starts in, V (default: the first sample).
 
     Returns
     -------
@@ -187,7 +191,7 @@ def respond(coefs: np.ndarray, data: StepData, hold: str = "preceding") -> list[
     if hold not in HOLDS:
         raise InputError(f"hold must be one of {', '.join(HOLDS)}, not {hold!r}")
     den, nums = _discrete(coefs, data.dt_s)
-    v0 = data.voltage_V[0]
+    v0 = data.voltage_V[0] if initial_voltage_V is None else initial_voltage_V
     dv = data.voltage_V - v0
     gains = [coefs[0] / coefs[2]]
     if len(coefs) > 3:

@@ -202,7 +202,7 @@ def physical_estimate(coefs: np.ndarray, cov: np.ndarray,
 
     def electrical_faster(log_free: np.ndarray) -> bool:
         R, L, _, J, Kf = full(log_free)
-        return bool(R / L > Kf / J)
+        return bool(Kf / J < R / L)
 
     equal.sort(key=lambda lf: not electrical_faster(lf))
     chosen = equal[0]

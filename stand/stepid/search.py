@@ -22,12 +22,12 @@ METHODS: tuple[str, ...] = ("trf", "lm", "gd", "pattern")
 #: Relative tolerance on the cost and the step for every method.
 TOLERANCE = 1e-10
 #: Iteration budget of gradient descent (each iteration costs one Jacobian).
-GD_MAX_ITERATIONS = 3000
+GD_MAX_ITERATIONS = 1000
 #: Gradient descent counts as converged when every column of the Jacobian is this close
 #: to orthogonal to the residuals (cosine).
 GD_OPTIMALITY = 1e-4
-#: Residual-evaluation budget of pattern search.
-PATTERN_MAX_EVALUATIONS = 20000
+#: Residual-evaluation budget of pattern search per parameter (MATLAB's default 2000·n).
+PATTERN_EVALUATIONS_PER_PARAMETER = 2000
 #: First mesh size of pattern search, in scaled parameter units (log units: ~10 %).
 PATTERN_INITIAL_MESH = 0.1
 #: Pattern search stops when the mesh is this small.
@@ -118,9 +118,10 @@ def _gradient_descent(fun: Residuals, x0: np.ndarray) -> tuple[np.ndarray, int, 
         if improvement <= TOLERANCE * cost:
             cosine = _optimality(jacobian(fun, x, r), r)
             stationary = cosine < GD_OPTIMALITY
+            verdict = "stationary" if stationary else "not yet stationary: stalled in a valley"
             return x, nfev + len(x), stationary, (
                 f"cost change below tolerance after {iteration + 1} iterations; gradient "
-                f"cosine {cosine:.2g} ({'stationary' if stationary else 'not yet stationary: stalled in a valley'})"
+                f"cosine {cosine:.2g} ({verdict})"
             )
         rate = min(rate * 2.0, 1.0)
     return x, nfev, False, f"stopped at the budget of {GD_MAX_ITERATIONS} iterations"
@@ -132,7 +133,8 @@ def _pattern_search(fun: Residuals, x0: np.ndarray) -> tuple[np.ndarray, int, bo
     cost, nfev, mesh = 0.5 * r @ r, 1, PATTERN_INITIAL_MESH
     n = len(x)
     directions = np.vstack([np.eye(n), -np.eye(n)])
-    while nfev < PATTERN_MAX_EVALUATIONS:
+    budget = PATTERN_EVALUATIONS_PER_PARAMETER * n
+    while nfev < budget:
         if mesh < PATTERN_MIN_MESH:
             return x, nfev, True, f"mesh below {PATTERN_MIN_MESH:g} after {nfev} evaluations"
         for direction in directions:
@@ -146,7 +148,7 @@ def _pattern_search(fun: Residuals, x0: np.ndarray) -> tuple[np.ndarray, int, bo
                 break
         else:
             mesh *= 0.5
-    return x, nfev, False, f"stopped at the budget of {PATTERN_MAX_EVALUATIONS} evaluations"
+    return x, nfev, False, f"stopped at the budget of {budget} evaluations"
 
 
 def minimize(fun: Residuals, x0: np.ndarray, method: str = "trf") -> Minimum:

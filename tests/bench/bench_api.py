@@ -131,9 +131,49 @@ def bench_identify(workdir: Path) -> None:
           f"all done in {wall:.2f} s ({REQUESTS / wall:.1f} requests/s)")
 
 
+def bench_stop(workdir: Path, repeats: int = 5) -> None:
+    """POST /stop mid-run on the two-drive stand: stand time until every node is in quick stop."""
+    from fastapi.testclient import TestClient
+
+    from api.app import create_app, default_runner
+    from stand.settings import Settings
+    from tests.integration.test_api_stop import RecordingRunner
+
+    lags_ms: list[float] = []
+    walls_ms: list[float] = []
+    for k in range(repeats):
+        recorder: list[RecordingRunner] = []
+
+        def factory(s: Settings, recorder: list[RecordingRunner] = recorder) -> RecordingRunner:
+            recorder.append(RecordingRunner(default_runner(s)))
+            return recorder[0]
+
+        settings = Settings(data_dir=workdir / f"stop{k}", bus_channel=f"bench-stop-{k}")
+        with TestClient(create_app(settings, factory)) as client:  # type: ignore[arg-type]
+            run_id = client.post("/runs", json={"profile": "seed000_efficiency",
+                                                "overrides": {"duration_s": 300.0}}).json()["id"]
+            while client.get(f"/runs/{run_id}").json()["samples"] < 1000:
+                time.sleep(0.02)
+            t0 = time.perf_counter()
+            client.post("/stop").raise_for_status()
+            walls_ms.append(1e3 * (time.perf_counter() - t0))
+            period = recorder[0].runner._bus.master.period_s
+            for node in recorder[0].nodes():
+                if node.quick_stop_at is None:
+                    print(f"  repeat {k}: node {node.id} never entered quick stop "
+                          f"(state {node.sm.state}, syncs {node.syncs})", file=sys.stderr)
+                    continue
+                lags_ms.append(1e3 * period * (node.quick_stop_at[1]
+                                               - recorder[0].syncs_at_request[node.id]))
+    print(f"POST /stop mid-run, 2 drives, {repeats} times: stand time from the request to "
+          f"QUICK STOP ACTIVE max {max(lags_ms):.1f} ms (p50 {statistics.median(lags_ms):.1f} ms); "
+          f"HTTP round trip p50 {statistics.median(walls_ms):.1f} ms")
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         bench_storage(Path(tmp))
+        bench_stop(Path(tmp))
         bench_identify(Path(tmp))
 
 

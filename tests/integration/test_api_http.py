@@ -132,6 +132,10 @@ def test_upload_limit_is_413(tmp_path: Path) -> None:
             assert answer.status_code == 413
             answer = c.post("/runs/upload", files={"file": ("big.csv", text)})
             assert answer.status_code == 413
+            # Far past the limit: refused from Content-Length, before the body is read.
+            answer = c.post("/runs/upload", files={"file": ("huge.csv", "0," * (2 << 20))})
+            assert answer.status_code == 413
+            assert c.get("/runs").json() == [], "nothing refused may be stored"
 
 
 def test_bad_upload_is_422_naming_row_and_column(client: httpx.Client) -> None:
@@ -148,3 +152,21 @@ def test_stop_quick_stops_and_reports(client: httpx.Client) -> None:
     assert "drives" in answer.json()
     bus = client.get("/bus").json()
     assert {"nodes", "current_run", "queued_runs"} <= bus.keys()
+
+
+def test_without_a_key_only_loopback(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from tests.integration.test_api_support import ROOT
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("STAND_")}
+    env.update(STAND_DATA_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
+    refused = subprocess.run([sys.executable, "-m", "stand", "serve", "--host", "0.0.0.0",
+                              "--port", "0"], env=env, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == 2
+    assert "STAND_API_KEY" in refused.stderr
+    with serve(tmp_path / "open", api_key=None) as open_server, open_server.client() as c:
+        assert "loopback only" in c.get("/health").json()["auth"]
+        assert c.post("/stop").status_code == 200  # local callers may mutate without a key

@@ -89,6 +89,9 @@ def test_mapping_is_checked_against_the_run_kind(mat_file: Path) -> None:
         import_run(mat_file, [("time_s", "t"), ("voltage_in_V", "vir")], "single")
     with pytest.raises(InputError, match="missing column.*current_A"):
         import_run(mat_file, [("time_s", "t"), ("position_rad", "qm")], "single")
+    with pytest.raises(InputError, match=r"rec.mat: mapped columns differ in length \(time_s=t has "
+                       rf"{N}, position_rad=short has {N - 1}, current_A=vir has {N} samples\)"):
+        import_run(mat_file, [("time_s", "t"), ("position_rad", "short"), ("current_A", "vir")])
     with pytest.raises(InputError, match="mapped twice"):
         import_run(mat_file, [("time_s", "t"), ("time_s", "t")], "single")
     with pytest.raises(InputError, match="time_s must be strictly increasing"):

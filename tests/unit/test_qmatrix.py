@@ -170,3 +170,46 @@ def test_identify_recovers_a_linear_motor_without_noise() -> None:
     assert_allclose(r.D_over_J, D_over_J, atol=0.05)
     assert abs(r.C_over_J) < 0.05
     assert r.fit_percent > 99.0
+
+
+def test_auto_half_width_widens_with_noise() -> None:
+    from stand.ident.derivatives import DEFAULT_HALF_WIDTH, auto_half_width
+    rng = np.random.default_rng(8)
+    signal = np.sin(2 * np.pi * np.arange(20000) / 4000)       # slow, unit amplitude
+    quiet = auto_half_width(signal + 0.01 * rng.standard_normal(20000), 0.01)
+    noisy = auto_half_width(signal + 1.0 * rng.standard_normal(20000), 1.0)
+    assert quiet == DEFAULT_HALF_WIDTH < noisy <= 1000       # 1000 = 5 % of the record
+
+
+# Command line ------------------------------------------------------------------------
+
+def test_identify_cli_fields_and_not_excited_exit_code(tmp_path, capsys) -> None:
+    import json
+
+    from stand.cli import main
+    from stand.runfile import read_run, write_run
+    path = tmp_path / "run.csv"
+    assert main(["simulate", "crouzet_82800502", "-o", str(path), "--period", "0.001",
+                 "--duration", "3", "--seed", "2"]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(path), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    for name in ("A", "B", "Kt_over_J", "D_over_J", "C_over_J", "fit_percent",
+                 "condition_number", "samples"):
+        assert name in result
+    assert np.shape(result["A"]) == (2, 2) and np.shape(result["B"]) == (2, 1)
+    # Kt/J = 0.0527/1.2e-5 = 4392; PRBS speed steps at 1 kHz: within 5 % (sampled current
+    # of a speed loop, Coulomb friction not compensated here).
+    assert abs(result["Kt_over_J"] / 4392 - 1) < 0.05
+    # A constant speed command, its last second (settled): constant current: exit 2.
+    simulated_constant = tmp_path / "constant.csv"
+    assert main(["simulate", "crouzet_82800502", "-o", str(simulated_constant), "--period",
+                 "0.001", "--duration", "3", "--excitation", "constant", "--seed", "2"]) == 0
+    run = read_run(simulated_constant)
+    steady = write_run(tmp_path / "steady.csv", {k: v[-1000:] for k, v in run.columns.items()})
+    capsys.readouterr()
+    assert main(["identify", str(steady), "--json"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and "excite" in captured.err and "steady.csv" in captured.err
+    assert main(["identify", str(path), "--method", "paper", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["method"] == "paper"

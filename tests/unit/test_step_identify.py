@@ -178,3 +178,24 @@ def test_reversed_tacho_is_named(speed_only: Run) -> None:
                              "velocity_rad_s": -speed_only["velocity_rad_s"]}, "step", "flipped")
     with pytest.raises(InputError, match="wired reversed"):
         identify_steps([flipped])
+
+
+def test_a_file_that_starts_at_the_step_instant(step_run: Run) -> None:
+    # Many recordings start when the step is applied: first voltage 8.5 V, motor at rest.
+    first = int(np.argmax(step_run["voltage_V"] > 0))
+    cut = check_columns({k: v[first:] for k, v in step_run.columns.items()}, "step", "cut")
+    assert cut["voltage_V"][0] == 8.5 and abs(cut["velocity_rad_s"][0]) < 0.5
+    result = identify_steps([cut])
+    assert abs(result.initial_voltage_V[0]) < 0.05  # it started from rest, not at 8.5 V
+    for name in PARAM_NAMES:
+        assert result.params[name] == pytest.approx(SEED[name], rel=0.03), name
+
+
+def test_a_run_that_starts_in_steady_state_at_its_first_voltage() -> None:
+    run = simulate_step_run("ms150_dcm150f", [4.0, 8.5], 8.0, seed=14)
+    settled = int(np.argmax(run.time_s > 3.0))  # 2.6 s at 4 V: eight mechanical time constants
+    cut = check_columns({k: v[settled:] for k, v in run.columns.items()}, "step", "settled")
+    result = identify_steps([cut])
+    assert result.initial_voltage_V[0] == pytest.approx(4.0, rel=0.01)
+    for name in PARAM_NAMES:
+        assert result.params[name] == pytest.approx(SEED[name], rel=0.03), name

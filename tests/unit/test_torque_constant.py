@@ -43,6 +43,33 @@ def test_no_load_current_is_the_current_at_zero_acceleration() -> None:
     assert_allclose(no_load_current(run, "paper"), 0.2, atol=2e-3)  # Euler lag: 1-sample skew
 
 
+def _ode_run(Kt: float, J: float, D: float, seed: int):
+    """Noise-free J·θ'' + D·θ' = Kt·i with a smooth current, sampled at 1 kHz for 3 s."""
+    from scipy.integrate import solve_ivp
+    dt, n = 1e-3, 3000
+    t = np.arange(n) * dt
+    rng = np.random.default_rng(seed)
+    i = 0.3 + sum(0.1 * np.sin(2 * np.pi * f * t + rng.uniform(0, 6.3)) for f in (1.3, 3.1, 7.7))
+    sol = solve_ivp(lambda tt, y: [y[1], (Kt * np.interp(tt, t, i) - D * y[1]) / J], (0, t[-1]),
+                    [0.0, 0.0], t_eval=t, rtol=1e-10, atol=1e-12, max_step=dt)
+    return check_columns({"time_s": t, "current_A": i, "position_rad": sol.y[0]}, "single", "ode")
+
+
+def test_eqs_11_to_17_on_exact_runs() -> None:
+    # Kt = 0.05, J = 1e-5, Ĵ = 1e-5, D = 2e-6: b̂2 = 5000 (eq. 11), b̃2 = 2500 (eq. 15), and
+    # eq. 17 returns Kt = 0.05. Tolerance 0.3 %: the kernel sums approximate the continuous
+    # convolution of the sampled signals (second order in the sample period).
+    Kt, J, J_hat, D = 0.05, 1e-5, 1e-5, 2e-6
+    free = [_ode_run(Kt, J, D, k) for k in range(2)]
+    loaded = [_ode_run(Kt, J + J_hat, D, 10 + k) for k in range(2)]
+    r = torque_constant(free, loaded, J_hat, compensate=False)
+    assert_allclose(r.Kt_over_J_no_load, Kt / J, rtol=3e-3)
+    assert_allclose(r.Kt_over_J_loaded, Kt / (J + J_hat), rtol=3e-3)
+    assert_allclose(r.Kt, Kt, rtol=3e-3)
+    assert_allclose(r.J, J, rtol=3e-3)
+    assert_allclose(r.D, D, rtol=0.05, atol=2e-7)
+
+
 @pytest.fixture(scope="module")
 def default_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[Path], list[Path]]:
     """Five repeats of the default experiment (1 kHz, 10 s) on the seed motor with its
@@ -103,6 +130,6 @@ def test_swapped_runs_are_refused(default_runs: tuple[list[Path], list[Path]]) -
     with pytest.raises(InputError, match="right way round"):
         torque_constant(loaded, free, SEED_ADDED_INERTIA_KGM2)
     with pytest.raises(InputError, match="equally many"):
-        torque_constant(free, loaded + loaded[:1] + loaded[:1][:0] + free, SEED_ADDED_INERTIA_KGM2)
+        torque_constant(free, loaded + loaded + loaded[:1], SEED_ADDED_INERTIA_KGM2)  # 2 vs 5
     with pytest.raises(InputError, match="inertia"):
         torque_constant(free, loaded, -1.0)

@@ -3,18 +3,24 @@
     python -m tests.vcan.bench          # inside User-Mode Linux, or on any host with vcan0
 
 Prints frames/s between two python-can sockets, frames/s that python-can receives from
-cangen, and the SYNC jitter of the master at 1 ms and 15 ms (see tests/vcan/jitter.py).
+cangen, and the SYNC jitter of our master in realtime mode at 1 ms and 15 ms, with the
+simulated drives in their own process: p50/p99/max of |interval - period| both as the master
+timed its sends (time.monotonic) and as candump's kernel timestamps saw the SYNCs arrive.
 """
 
 from __future__ import annotations
 
 import sys
+import tempfile
 import time
+from pathlib import Path
+from typing import Any
 
 import can
+import numpy as np
 
-from tests.vcan.canutils import Cangen
-from tests.vcan.conftest import CHANNEL, VCAN_SYSFS
+from tests.vcan.canutils import Candump, Cangen
+from tests.vcan.conftest import CHANNEL, VCAN_SYSFS, SimstandProcess
 
 THROUGHPUT_FRAMES = 20_000
 RECV_TIMEOUT_S = 5.0
@@ -58,6 +64,49 @@ def cangen_to_python_fps(frames: int = THROUGHPUT_FRAMES) -> tuple[float, int]:
         rx.shutdown()
 
 
+JITTER_PROFILE = "crouzet_82800502"
+#: (period, samples): 1 ms as the fast stands (seed 001, the two-motor stand), 15 ms as seed 000.
+JITTER_CASES = ((0.001, 2000), (0.015, 300))
+
+
+def sync_jitter(period_s: float, samples: int) -> str:
+    """One realtime run of the master against the drives' process; the jitter line."""
+    from bus.adapters import BusConfig
+    from bus.drive import DriveConfig
+    from bus.master import Master
+    from bus.simstand import scaling_for
+    from bus.sync import Jitter
+    from stand.profiles import load_motor
+
+    scaling = scaling_for(load_motor(JITTER_PROFILE))
+    with tempfile.TemporaryDirectory() as tmp:
+        drives = SimstandProcess(JITTER_PROFILE, Path(tmp) / "simstand.log")
+        try:
+            drives.wait_ready()
+            master = Master(BusConfig("socketcan", CHANNEL), heartbeat_period_s=0.5)
+            try:
+                master.setup([DriveConfig(1, "speed", scaling)], period_s)
+                with Candump(CHANNEL) as dump:
+                    run = master.run(np.full((1, samples), 10.0), time_mode="realtime")
+                master.stop_drives()
+            finally:
+                master.close()
+        finally:
+            drives.close()
+    wire = np.array([f.timestamp_s for f in dump.frames
+                     if f.arbitration_id == 0x080 and not f.is_extended_id][:run.count])
+    sent, seen = Jitter.of(run.wall_s, period_s), Jitter.of(wire, period_s)
+    d = run.drives[0]
+    return (f"vcan bench: SYNC jitter at {period_s * 1e3:g} ms, {run.count} SYNCs"
+            f"{' (aborted: ' + run.aborted + ')' if run.aborted else ''}: "
+            f"master send p50/p99/max {_us(sent)}, on the wire (candump) {_us(seen)}; "
+            f"TPDOs lost {d.lost} of {2 * run.count}, duplicates {d.duplicates}")
+
+
+def _us(j: Any) -> str:
+    return f"{j.p50_s * 1e6:.0f}/{j.p99_s * 1e6:.0f}/{j.max_s * 1e6:.0f} us"
+
+
 def main() -> int:
     if not VCAN_SYSFS.exists():
         print(f"bench: {VCAN_SYSFS} missing; run tests/vcan/run.sh", file=sys.stderr)
@@ -66,6 +115,8 @@ def main() -> int:
     fps, got = cangen_to_python_fps()
     print(f"vcan bench: cangen -g 0 -> python-can on {CHANNEL}: {fps:,.0f} frames/s "
           f"({got} of {THROUGHPUT_FRAMES} received)")
+    for period_s, samples in JITTER_CASES:
+        print(sync_jitter(period_s, samples))
     return 0
 
 

@@ -156,7 +156,7 @@ def sdo_transfers(frames: Sequence[Frame], node_id: int) -> list[SdoTransfer]:
             value = int.from_bytes(pending.data[4:4 + size], "little")
             out.append(SdoTransfer(node_id, True, index, subindex, value, None))
         else:
-            _need(scs == SCS_UPLOAD_INITIATE and f.data[0] & 0x02,
+            _need(scs == SCS_UPLOAD_INITIATE and bool(f.data[0] & 0x02),
                   "upload initiate response has scs=2 and e=1 (expedited)", f)
             size = 4 - ((f.data[0] >> 2) & 0x03) if f.data[0] & 0x01 else 4
             value = int.from_bytes(f.data[4:4 + size], "little")

@@ -6,7 +6,8 @@
 # Boots /usr/bin/linux.uml with the host's own file system as root (hostfs), where
 # tests/vcan/uml_init.sh loads the CAN modules, creates vcan0 and runs
 #   pytest tests/vcan tests/integration/test_bus_*.py [PYTEST ARGS]
-# then the SYNC jitter benchmark, and writes the exit status to a file this script reads.
+# (without PYTEST ARGS: -k "not virtual", the bus cases' virtual variants run on the host;
+# with an argument naming a test path, only that path), then the SYNC jitter benchmark, and writes the exit status to a file this script reads.
 # The guest's console (the test output) is this script's stdout.
 #
 # Exit status: the suite's status; 1 when UML is missing, fails to boot, exceeds its time
@@ -15,6 +16,7 @@
 # Environment (all optional):
 #   VCAN_BOOT_TIMEOUT_S  seconds from start until vcan0 must be up       (default 90)
 #   VCAN_TIMEOUT_S       seconds for the whole run, boot included         (default 600)
+#   VCAN_TEST_TIMEOUT_S  seconds one test may take (pytest-timeout)       (default 120)
 #   VCAN_MEM             guest memory                                     (default 1G)
 #   VCAN_BENCH=0         skip the SYNC jitter benchmark
 #   STAND_*, PYTEST_ADDOPTS, VCAN_*  are passed into the guest.

@@ -1,0 +1,66 @@
+"""``stand diagnose TRAIN.csv --holdout HOLDOUT.csv``: the sim-to-real gap (CONTRACT §3)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from stand.diagnose import diagnose
+from stand.diagnose.engine import ANCHOR_HORIZON_S, MAX_EFFECTS, diagnose_with_traces
+from stand.errors import InputError
+from stand.jsonable import to_jsonable
+from stand.runfile import read_run
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("train", help="run file the models are identified on (CSV, single motor)")
+    parser.add_argument("--holdout", required=True,
+                        help="run file the models are scored on (CSV, single motor)")
+    parser.add_argument("--kt", type=float, default=None,
+                        help="torque constant, N·m/A: also report torques in N·m")
+    parser.add_argument("--horizon", type=float, default=ANCHOR_HORIZON_S,
+                        help="free-run time between re-anchorings of the simulation, s")
+    parser.add_argument("--max-effects", type=int, default=MAX_EFFECTS,
+                        help="most effects combined in the verdict")
+    parser.add_argument("--spring", action="store_true",
+                        help="keep seed 000's spring term C·θ in the nominal model")
+    parser.add_argument("--plot", metavar="DIR", help="write PNG figures to this folder")
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    train = read_run(args.train, "single")
+    holdout = read_run(args.holdout, "single")
+    if args.kt is not None and not args.kt > 0:
+        raise InputError(f"--kt must be > 0 N·m/A, got {args.kt}")
+    options = dict(kt=args.kt, horizon_s=args.horizon, max_effects=args.max_effects,
+                   spring=args.spring)
+    if not args.plot:
+        return dict(to_jsonable(diagnose(train, holdout, **options)))
+    from stand.diagnose.plots import write_plots
+
+    result, traces = diagnose_with_traces(train, holdout, **options)
+    out: dict[str, Any] = to_jsonable(result)
+    out["plots"] = [str(p) for p in write_plots(args.plot, result, traces)]
+    return out
+
+
+def summarize(result: dict[str, Any]) -> str:
+    where = result["where"]
+    place = where["regime"]
+    for key, unit in (("cycles_per_rev", " cycles/rev"), ("band_hz", " Hz"), ("lag_s", " s")):
+        if where.get(key) is not None:
+            place += f", {key} {where[key]}{unit}"
+    lines = [
+        f"gap {result['gap_percent']:.2f} % of the holdout speed "
+        f"(quantization floor {result['noise_floor_percent']:.2f} %), where: {place}",
+        f"verdict: {result['verdict']} (gap with it {result['verdict_gap_percent']:.2f} %)",
+        "effect               gap %   shrink  significant  params",
+    ]
+    for e in result["effects"]:
+        params = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                           for k, v in e["params"].items())
+        lines.append(f"{e['effect']:<20} {e['gap_percent']:6.2f}  {e['shrink']:7.2f}  "
+                     f"{'yes' if e['significant'] else 'no':<11}  {params}")
+    if result.get("plots"):
+        lines.append("plots: " + ", ".join(result["plots"]))
+    return "\n".join(lines)

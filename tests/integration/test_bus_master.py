@@ -1,0 +1,136 @@
+"""The master and the simulated drives speak CANopen as CiA 301 / 402 say (issue 3)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from bus import cia402
+from bus.adapters import BusConfig
+from bus.master import HEARTBEAT_PERIOD_S
+from bus.stand_bus import StandBus
+from bus.sync import SyncCounter
+from stand.controller import ExperimentProfile, StandController, plan
+from stand.errors import BusTimeout, InputError
+
+STAND = "cycloidal_two_motor"
+SHORT = ExperimentProfile(name="short", procedure="efficiency", stand=STAND, duration_s=2.0)
+#: The HTTP service's requirement: every drive in quick stop within 100 ms of stand time.
+QUICK_STOP_STAND_TIME_S = 0.1
+
+
+def test_quick_stop_all_reaches_every_drive_within_100_ms_of_stand_time(
+        can_config: BusConfig, tmp_path: Path) -> None:
+    with StandBus(STAND, can_config, simulate=True) as bus:
+        assert bus.sim is not None
+        controller = StandController(bus)
+        (procedure, drives), = plan(SHORT)
+        asked: list[int] = []
+
+        def progress(k: int, n: int) -> None:
+            if k == 500 and not asked:
+                asked.append(bus.sim.nodes[0].syncs)  # type: ignore[union-attr]
+                controller.quick_stop_all()
+
+        record = controller.run_procedure(procedure, drives, tmp_path, progress)
+        assert record.aborted == "quick stop requested" and not record.complete
+        period = procedure.sample_period_s
+        for node in bus.sim.nodes:
+            assert node.quick_stop_at is not None, node.id
+            assert (node.quick_stop_at[1] - asked[0]) * period <= QUICK_STOP_STAND_TIME_S
+        assert 500 <= record.samples < procedure.samples
+
+
+def test_stop_event_ends_the_run_and_keeps_the_samples(can_config: BusConfig, tmp_path: Path) -> None:
+    stop = threading.Event()
+    chunks: list[dict[str, np.ndarray]] = []
+
+    def progress(fraction: float) -> None:
+        if fraction >= 0.25:
+            stop.set()
+
+    with StandBus(STAND, can_config, simulate=True) as bus:
+        controller = StandController(bus, progress=progress, on_chunk=chunks.append, stop=stop,
+                                     chunk_samples=100)
+        result = controller.run_experiment(SHORT, tmp_path)
+    (record,) = result.runs
+    assert record.aborted == "stop requested"
+    rows = sum(len(c["time_s"]) for c in chunks)
+    assert rows == record.samples  # every recorded row went through on_chunk, once
+    assert set(chunks[0]) >= {"time_s", "current_in_A", "position_in_rad", "current_out_A",
+                              "position_out_rad"}
+    assert np.all(np.diff(np.concatenate([c["time_s"] for c in chunks])) > 0)
+
+
+def test_status_reports_nodes_nmt_heartbeat_and_counters(can_config: BusConfig) -> None:
+    with StandBus(STAND, can_config, simulate=True) as bus:
+        (procedure, drives), = plan(SHORT)
+        bus.setup(drives, procedure.sample_period_s)
+        bus.run(np.zeros((2, 50)))
+        deadline = time.monotonic() + 3 * HEARTBEAT_PERIOD_S
+        while time.monotonic() < deadline:  # the NMT state is what the last heartbeat said
+            status = bus.status()
+            if all(n["nmt_state"] == "OPERATIONAL" for n in status["nodes"]):
+                break
+            time.sleep(0.01)
+    assert [n["node_id"] for n in status["nodes"]] == [1, 2]
+    for node in status["nodes"]:
+        assert node["nmt_state"] == "OPERATIONAL"
+        assert 0 <= node["heartbeat_age_s"] < 1.5 * HEARTBEAT_PERIOD_S
+        assert node["lost"] == node["duplicates"] == node["late"] == node["emcy_count"] == 0
+
+
+def test_trace_holds_every_sync_and_pdo(can_config: BusConfig, tmp_path: Path) -> None:
+    with StandBus(STAND, can_config, simulate=True) as bus:
+        (procedure, drives), = plan(SHORT)
+        bus.setup(drives, procedure.sample_period_s)
+        samples = bus.run(np.zeros((2, 200)), trace_path=tmp_path / "t.log")
+    assert samples.complete
+    ids = [msg.arbitration_id for msg in can.LogReader(str(tmp_path / "t.log"))]
+    assert ids.count(0x080) == 200
+    for cob_id in (0x181, 0x281, 0x182, 0x282, 0x201, 0x202):  # TPDO1/2 of both, RPDO1 of both
+        assert ids.count(cob_id) == 200, hex(cob_id)
+    counters = samples.sync_counter
+    assert counters[0] == 1 and np.all(counters[1:] == counters[:-1] % 240 + 1)
+
+
+def test_boot_up_timeout_names_the_missing_node(can_config: BusConfig) -> None:
+    with StandBus("crouzet_82800502", can_config, simulate=True, boot_timeout_s=0.2) as bus:
+        (procedure, drives), = plan(ExperimentProfile(name="x", procedure="no_load",
+                                                      motor="crouzet_82800502", repeats=1))
+        missing = [type(drives[0])(**{**drives[0].__dict__, "node_id": 9})]
+        with pytest.raises(BusTimeout, match="node 9: no boot-up"):
+            bus.setup(missing, 0.001)
+
+
+def test_state_machine_follows_cia402() -> None:
+    sm, S = cia402.StateMachine(), cia402.State
+    assert sm.on_controlword(cia402.CW_ENABLE_OPERATION) is S.SWITCH_ON_DISABLED  # no skipping
+    for word, state in ((cia402.CW_SHUTDOWN, S.READY_TO_SWITCH_ON), (cia402.CW_SWITCH_ON, S.SWITCHED_ON),
+                        (cia402.CW_ENABLE_OPERATION, S.OPERATION_ENABLED),
+                        (cia402.CW_QUICK_STOP, S.QUICK_STOP_ACTIVE),
+                        (cia402.CW_ENABLE_OPERATION, S.QUICK_STOP_ACTIVE),  # option code 2: stays
+                        (cia402.CW_DISABLE_VOLTAGE, S.SWITCH_ON_DISABLED)):
+        assert sm.on_controlword(word) is state
+        assert cia402.state_of(sm.statusword) is state
+    sm.fault()
+    assert sm.on_controlword(cia402.CW_SHUTDOWN) is S.FAULT
+    assert sm.on_controlword(cia402.CW_FAULT_RESET) is S.SWITCH_ON_DISABLED
+
+
+def test_sync_counter_wraps_at_the_overflow_value() -> None:
+    counter = SyncCounter(3)
+    assert [counter.next()[0] for _ in range(7)] == [1, 2, 3, 1, 2, 3, 1]
+    assert SyncCounter(0).next() == (0, b"")
+    with pytest.raises(InputError, match="overflow"):
+        SyncCounter(1)
+
+
+def test_udp_multicast_is_refused() -> None:
+    with pytest.raises(InputError, match="leaves the machine"):
+        BusConfig("udp_multicast", "239.0.0.1")
