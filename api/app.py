@@ -16,16 +16,11 @@ from fastapi import FastAPI
 from api import errors
 from api.limits import BodyLimit
 from api.routers import analysis, health, profiles, results, runs, stand
-from stand.jobs import ControllerRunner, JobManager, StandRunner
+from stand.jobs import SIMULATED_MASTER_OPTIONS, ControllerRunner, JobManager, StandRunner
 from stand.settings import Settings, get_settings
 from stand.storage import Storage
 
 log = logging.getLogger("stand.api")
-
-#: Heartbeat period of drives simulated in this process, s. They share the CPU with the
-#: service (and, on a build machine, with everything else): a 100 ms heartbeat missed
-#: under load would abort runs although no drive failed. Real drives keep the bus default.
-SIMULATED_HEARTBEAT_PERIOD_S = 0.5
 
 DESCRIPTION = """Test-stand controller for DC motors and gear reducers (CANopen CiA 402).
 
@@ -43,8 +38,7 @@ def default_runner(settings: Settings) -> StandRunner:
     from bus.stand_bus import StandBus
 
     config = BusConfig(settings.bus_interface, settings.bus_channel, settings.bus_bitrate)
-    options: dict[str, Any] = (
-        {"heartbeat_period_s": SIMULATED_HEARTBEAT_PERIOD_S} if config.interface == "virtual" else {})
+    options: dict[str, Any] = dict(SIMULATED_MASTER_OPTIONS) if config.interface == "virtual" else {}
 
     def open_bus(profile: str, seed: int | None) -> StandBus:
         return StandBus(profile, config, seed=seed, **options)

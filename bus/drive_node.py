@@ -33,6 +33,8 @@ NMT_INITIALISING, NMT_STOPPED, NMT_OPERATIONAL, NMT_PRE_OPERATIONAL = 0, 4, 5, 1
 PDO_COUNT = 2
 #: Over-current trips when the measured current exceeds this multiple of 0x6073.
 OVER_CURRENT_MARGIN = 1.0
+#: A speed error beyond the following window for this long is a fault, s.
+FOLLOWING_ERROR_TIME_S = 0.5
 #: SDO abort: object cannot be mapped / general parameter incompatibility.
 ABORT_GENERAL = 0x0800_0000
 
@@ -88,6 +90,9 @@ class SimDriveNode:
         self._on_reset = on_reset
         self._on_write = on_write
         self.max_current_A = max_current_A
+        #: Speed error that counts as a following error (None: not checked), rad/s.
+        self.following_window_rad_s: float | None = None
+        self._following_s = 0.0
         self.heartbeat_muted = False
         self.heartbeat_period_s = 0.0
         self._heartbeat_due = 0.0
@@ -96,6 +101,7 @@ class SimDriveNode:
         self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.pdo_drop_every = 0  # fault injection: drop every n-th TPDO (0 = none)
         self._tpdo_count = 0
+        self.tpdos_discarded = 0  # SYNCs answered by no TPDO: outside the synchronous window
         self.syncs = 0  # SYNCs seen since power-on (stand time = syncs · period)
         self.quick_stop_at: tuple[float, int] | None = None  # (time.monotonic(), syncs)
         self._subscribed: list[int] = []
@@ -276,15 +282,22 @@ class SimDriveNode:
             else:
                 self.values[index] = int(value)
 
-    def sample(self, dt_s: float) -> None:
-        """At SYNC: measure, check the limits, send the TPDOs when OPERATIONAL."""
+    def sample(self, dt_s: float, sync_stamp: float | None = None) -> None:
+        """At SYNC: measure, check the limits, send the TPDOs when OPERATIONAL.
+
+        ``sync_stamp`` is the SYNC's ``time.time()`` stamp; a TPDO that could not be sent
+        within the synchronous window 0x1007 after it is discarded (CiA 301), so a late
+        answer is never taken for the next SYNC's. The check is made right before each send.
+        """
         m = self.plant().measure(dt_s, self.port)
         self.measurement = m
         self.syncs += 1
         if abs(m.current_A) > self.max_current_A * OVER_CURRENT_MARGIN and self.sm.enabled:
             self.fault(cia402.EMCY_OVER_CURRENT, register=0x03)
+        self._check_following(m, dt_s)
         if self.nmt_state != NMT_OPERATIONAL:
             return
+        window_s = struct.unpack("<I", self.node.get_data(0x1007, 0))[0] * 1e-6 if 0x1007 in self.od else 0
         if self._tpdos is None:
             self._tpdos = self._layouts(0x1800, 0x1A00)
         for cob_id, layout in self._tpdos:
@@ -292,7 +305,24 @@ class SimDriveNode:
             if self.pdo_drop_every and self._tpdo_count % self.pdo_drop_every == 0:
                 continue
             values = [self._on_sdo_read(index, 0, None) for index in layout.indices]
-            self.network.send_message(cob_id, layout.pack(values))
+            data = layout.pack(values)
+            if window_s and sync_stamp is not None and not 0 <= time.time() - sync_stamp <= window_s:
+                self.tpdos_discarded += 1
+                continue
+            self.network.send_message(cob_id, data)
+
+    def _check_following(self, m: Measurement, dt_s: float) -> None:
+        """Speed mode: a speed error beyond the window for longer than the time is a fault."""
+        if not (self.sm.enabled and self.mode == "speed" and self.following_window_rad_s):
+            self._following_s = 0.0
+            return
+        target = self.values.get(0x60FF, 0) * self.scaling.velocity_unit_rad_s
+        if abs(target - m.velocity_rad_s) > self.following_window_rad_s:
+            self._following_s += dt_s
+            if self._following_s > FOLLOWING_ERROR_TIME_S:
+                self.fault(cia402.EMCY_FOLLOWING_ERROR, register=0x21)
+        else:
+            self._following_s = 0.0
 
     def actuate(self) -> None:
         """At SYNC, after sampling: apply the latest target when OPERATION ENABLED."""

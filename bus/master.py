@@ -25,7 +25,14 @@ from bus import cia402
 from bus.adapters import BusConfig, connect_network
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
 from bus.sampler import Sampler, Samples
-from bus.sync import SYNC_COB_ID, SYNC_COUNTER_OVERFLOW, RealtimeClock, SyncCounter, check_time_mode
+from bus.sync import (
+    SYNC_COB_ID,
+    SYNC_COUNTER_OVERFLOW,
+    SYNC_WINDOW_FRACTION,
+    RealtimeClock,
+    SyncCounter,
+    check_time_mode,
+)
 from bus.trace import Trace
 from stand.errors import BusError, BusTimeout, DriveFault, HeartbeatLost, InputError
 
@@ -119,6 +126,7 @@ class Master:
         self._quick_stop = threading.Event()
         #: One counter for every SYNC the master sends (0x1019 is set on the drives).
         self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
+        self._window_written_us = 0
         self.running = False
         self.period_s = 0.0
         self.window = 0
@@ -151,14 +159,19 @@ class Master:
         self.drives = []
 
     def setup(self, drives: Sequence[DriveConfig], period_s: float,
-              added_inertia_kgm2: float | None = None) -> None:
+              added_inertia_kgm2: float | None = None, time_mode: str = "lockstep") -> None:
         """Reset, configure and enable ``drives`` for SYNC period ``period_s`` seconds.
+
+        In ``realtime`` the synchronous window 0x1007 is set to ``SYNC_WINDOW_FRACTION`` of
+        the period (0, none, in ``lockstep``, where the master waits for every answer).
 
         ``added_inertia_kgm2`` is written to the simulated drive's 0x2100 (the first drive);
         a real drive has no such object and the operator attaches the disk by hand.
         """
         if period_s <= 0:
             raise InputError(f"period_s must be > 0, got {period_s}")
+        self.time_mode = check_time_mode(time_mode)
+        window_us = self._window_us(time_mode, period_s)
         ids = [d.node_id for d in drives]
         if len(set(ids)) != len(ids):
             raise InputError(f"node ids must differ, got {ids}")
@@ -186,6 +199,8 @@ class Master:
                 drive.write(0x1019, 0, SYNC_COUNTER_OVERFLOW)
             if drive.has(0x1006):
                 drive.write(0x1006, 0, int(round(period_s * 1e6)))
+            if drive.has(0x1007):
+                drive.write(0x1007, 0, window_us)
             if n == 0 and added_inertia_kgm2 is not None:
                 if drive.has(cia402.ADDED_INERTIA):
                     drive.write(cia402.ADDED_INERTIA, 0, float(added_inertia_kgm2))
@@ -194,10 +209,24 @@ class Master:
                                 drive.id, added_inertia_kgm2)
             drive.write(cia402.MODES_OF_OPERATION, 0, cia402.MODES[drive.config.mode])
             drive.configure_pdos()
+        self._window_written_us = window_us
         for drive in self.drives:
             self.network.send_message(0, bytes([NMT_START, drive.id]))
         for drive in self.drives:
             drive.enable()
+
+    @staticmethod
+    def _window_us(time_mode: str, period_s: float) -> int:
+        return int(SYNC_WINDOW_FRACTION * period_s * 1e6) if time_mode == "realtime" else 0
+
+    def _set_sync_window(self, time_mode: str) -> None:
+        """Write the synchronous window 0x1007 of ``time_mode`` to every drive that has it."""
+        window_us = self._window_us(time_mode, self.period_s)
+        if window_us != self._window_written_us:
+            for drive in self.drives:
+                if drive.has(0x1007):
+                    drive.write(0x1007, 0, window_us)
+            self._window_written_us = window_us
 
     # -- supervision -----------------------------------------------------------------------
     def heartbeat_age_s(self, node_id: int) -> float | None:
@@ -273,11 +302,13 @@ class Master:
             raise InputError(f"targets: {len(self.drives)} drive(s) set up, got {targets.shape[0]} rows")
         if not self.drives or any(d.rpdo is None for d in self.drives):
             raise InputError("call setup() before run()")
+        self._set_sync_window(time_mode)  # in case setup() was told another time mode
         n = targets.shape[1]
         tpdos = {cob: (dn, p, layout) for dn, d in enumerate(self.drives)
                  for p, (cob, layout) in enumerate(d.tpdos)}
+        window_s = SYNC_WINDOW_FRACTION * self.period_s if time_mode == "realtime" else 0.0
         sampler = Sampler(tpdos, [d.id for d in self.drives], [d.config.scaling for d in self.drives],
-                          n, self.period_s)
+                          n, self.period_s, window_s)
         trace = Trace(trace_path) if trace_path else None
         if trace is not None:
             assert self.network.notifier is not None
@@ -289,7 +320,7 @@ class Master:
                    for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
                   if d.rpdo is not None]
         self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
-        clock = RealtimeClock(self.period_s) if time_mode == "realtime" else None
+        clock = RealtimeClock(self.period_s, window_s) if time_mode == "realtime" else None
         counter = self._sync_counter
         send = self.network.send_message
         aborted: str | None = None

@@ -105,10 +105,14 @@ class Sampler:
         Number of SYNC windows to hold.
     period_s : float
         SYNC period, s.
+    window_s : float
+        Synchronous window length, s: a TPDO stamped later after its SYNC is late (0: none).
     """
 
     def __init__(self, tpdos: dict[int, tuple[int, int, Layout]], node_ids: Sequence[int],
-                 scalings: Sequence[Scaling], samples: int, period_s: float) -> None:
+                 scalings: Sequence[Scaling], samples: int, period_s: float,
+                 window_s: float = 0.0) -> None:
+        self.window_s = window_s
         self.tpdos = tpdos
         self.scalings = list(scalings)
         self.samples = samples
@@ -153,9 +157,10 @@ class Sampler:
         d, p, layout, names = self._plan[can_id]
         with self._lock:
             k = self.window
-            if k < 0 or 0 < self._opened_stamp - timestamp < SAME_EPOCH_S:
+            after = timestamp - self._opened_stamp
+            if k < 0 or -SAME_EPOCH_S < after < 0 or (self.window_s and SAME_EPOCH_S > after > self.window_s):
                 # No window open, or the frame is stamped before this window's SYNC was
-                # sent: it answers an earlier SYNC.
+                # sent (it answers an earlier SYNC) or after the synchronous window.
                 self.late[d] += 1
                 return
             received = self.received[d]

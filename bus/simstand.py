@@ -27,6 +27,7 @@ from bus.adapters import BusConfig, connect_network
 from bus.cia402 import ADDED_INERTIA
 from bus.drive_node import Plant, SimDriveNode
 from bus.eds import FINE_COUNTS_PER_REV, Scaling
+from bus.sampler import SAME_EPOCH_S
 from stand.errors import NotFoundError
 from stand.physics.plant import MotorPlant
 from stand.physics.reducer import ReducerPlant
@@ -39,6 +40,8 @@ SYNC_COB_ID = 0x080
 SIGNAL_POLL_S = 0.2
 #: Longest sleep of the heartbeat thread while no node produces heartbeats, s.
 HEARTBEAT_IDLE_S = 0.05
+#: Following-error window of a speed-mode drive, as a fraction of the speed limit.
+FOLLOWING_WINDOW_FRACTION = 0.5
 #: Over-current threshold as a multiple of the drive's current limit.
 OVER_CURRENT_FACTOR = 1.5
 
@@ -92,6 +95,8 @@ class SimStand:
                          on_reset=self._on_reset, on_write=self._on_write)
             for port, (node_id, motor) in enumerate(zip(node_ids, self.motors, strict=True))
         ]
+        for node, motor in zip(self.nodes, self.motors, strict=True):
+            node.following_window_rad_s = FOLLOWING_WINDOW_FRACTION * motor.limits.speed_rad_s
         self.syncs = 0
         self.network.subscribe(SYNC_COB_ID, self._on_sync)
         for node in self.nodes:
@@ -140,8 +145,11 @@ class SimStand:
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         cycle_us = struct.unpack("<I", self.nodes[0].node.get_data(0x1006, 0))[0]
         dt_s = cycle_us * 1e-6 if cycle_us else self.period_s
+        stamp: float | None = timestamp
+        if abs(time.time() - timestamp) > SAME_EPOCH_S:
+            stamp = None  # the interface stamps frames on another clock
         for node in self.nodes:
-            node.sample(dt_s)
+            node.sample(dt_s, stamp)
         for node in self.nodes:
             node.actuate()
         self.plant.advance(dt_s)

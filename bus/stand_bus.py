@@ -67,10 +67,10 @@ class StandBus:
             raise
 
     def setup(self, drives: Sequence[DriveSetupLike], period_s: float,
-              added_inertia_kgm2: float | None = None) -> None:
+              added_inertia_kgm2: float | None = None, time_mode: str = "lockstep") -> None:
         configs = [DriveConfig(d.node_id, d.mode, Scaling(d.counts_per_rev, d.rated_current_A), d.eds)
                    for d in drives]
-        self.master.setup(configs, period_s, added_inertia_kgm2)
+        self.master.setup(configs, period_s, added_inertia_kgm2, time_mode)
 
     def run(self, targets: np.ndarray, *, time_mode: str = "lockstep",
             on_chunk: ChunkCallback | None = None, chunk_samples: int = 1000,

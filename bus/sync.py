@@ -22,6 +22,10 @@ SYNC_COUNTER_OVERFLOW = 240
 #: Below this much time to a deadline the clock yields instead of sleeping, s.
 SPIN_S = 2e-4
 TIME_MODES = ("lockstep", "realtime")
+#: Real time: synchronous window length 0x1007 as a fraction of the SYNC period. A drive
+#: discards a synchronous TPDO it could not send within it, and the master a TPDO stamped
+#: after it, so a late answer is never taken for the next SYNC's (CiA 301 §7.5.2.7).
+SYNC_WINDOW_FRACTION = 0.5
 
 
 def check_time_mode(mode: str) -> str:
@@ -48,27 +52,34 @@ class SyncCounter:
 
 
 class RealtimeClock:
-    """Wall-clock deadlines every ``period_s`` seconds from the first :meth:`wait`."""
+    """Wall-clock deadlines every ``period_s`` seconds from the first :meth:`wait`.
 
-    def __init__(self, period_s: float) -> None:
+    After a late tick the next one still keeps ``min_interval_s`` from it (so that two SYNCs
+    never come closer than the synchronous window); later ticks keep the original grid.
+    """
+
+    def __init__(self, period_s: float, min_interval_s: float = 0.0) -> None:
         self.period_s = period_s
+        self.min_interval_s = min_interval_s
         self.start: float | None = None
+        self.last = 0.0
         self.k = 0
 
     def wait(self) -> float:
         """Wait for the next deadline; return ``time.monotonic()`` when it was reached."""
         now = time.monotonic()
         if self.start is None:
-            self.start = now
+            self.start = self.last = now
             self.k = 1
             return now
-        deadline = self.start + self.k * self.period_s
+        deadline = max(self.start + self.k * self.period_s, self.last + self.min_interval_s)
         self.k += 1
         remaining = deadline - now
         if remaining > SPIN_S:
             time.sleep(remaining - SPIN_S)
         while (now := time.monotonic()) < deadline:
             time.sleep(0)
+        self.last = now
         return now
 
 

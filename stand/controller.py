@@ -101,7 +101,7 @@ class StandBus(Protocol):
     """What the controller needs from the bus (``bus.stand_bus.StandBus``)."""
 
     def setup(self, drives: Sequence[Any], period_s: float,
-              added_inertia_kgm2: float | None = None) -> None: ...
+              added_inertia_kgm2: float | None = None, time_mode: str = ...) -> None: ...
     def run(self, targets: np.ndarray, *, time_mode: str = ..., on_chunk: Any = ...,
             chunk_samples: int = ..., stop: threading.Event | None = ..., progress: Any = ...,
             trace_path: str | Path | None = ...) -> Any: ...
@@ -321,7 +321,8 @@ class StandController:
         if out is not None:
             out.mkdir(parents=True, exist_ok=True)
         started = time.monotonic()
-        self.bus.setup(drives, procedure.sample_period_s, procedure.added_inertia_kgm2)
+        self.bus.setup(drives, procedure.sample_period_s, procedure.added_inertia_kgm2,
+                       self.time_mode)
         try:
             samples = self.bus.run(targets, time_mode=self.time_mode, on_chunk=on_chunk,
                                    chunk_samples=self.chunk_samples, stop=self.stop,

@@ -33,6 +33,12 @@ PROGRESS_INTERVAL_S = 0.2
 #: How long close() waits for the worker to finish the current run after a stop, s.
 CLOSE_TIMEOUT_S = 10.0
 
+#: Master timeouts for drives simulated in this process (``bus.master.Master`` options).
+#: The simulated drives share the CPU with the master and the service (and, on a build
+#: machine, with everything else); under load a 100 ms heartbeat or a 0.5 s PDO answer is
+#: missed although no drive failed and no frame was lost. Real drives keep the defaults.
+SIMULATED_MASTER_OPTIONS: dict[str, Any] = {"heartbeat_period_s": 1.0, "pdo_timeout_s": 5.0}
+
 ProgressCallback = Callable[[float], None]
 ChunkCallback = Callable[[Mapping[str, np.ndarray]], None]
 
@@ -128,7 +134,8 @@ class JobManager:
         with self._lock:
             current = self._current
             self._stop.set()
-            cancelled = [run_id for run_id in self._plans if run_id != current]
+            cancelled = [run_id for run_id in self._plans
+                         if run_id != current and run_id not in self._cancelled]
             self._cancelled.update(cancelled)
         drives = self.runner.quick_stop_all()
         for run_id in cancelled:
@@ -139,7 +146,8 @@ class JobManager:
     def status(self) -> dict[str, Any]:
         """The stand's status plus the current run and the queue length."""
         with self._lock:
-            current, queued = self._current, len(self._plans) - (self._current is not None)
+            current = self._current
+            queued = sum(1 for i in self._plans if i != current and i not in self._cancelled)
         return {**self.runner.status(), "current_run": current, "queued_runs": queued}
 
     def close(self) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -142,8 +142,18 @@ def _check_time(time_s: np.ndarray, source: str) -> None:
 
 def parse_run(text: str, kind: RunKind, source: str = "<upload>") -> Run:
     """Parse CSV text as a run of ``kind`` (CONTRACT §1). All or nothing."""
-    required, optional = _kind_columns(kind)
+    _kind_columns(kind)
     reader = csv.reader(io.StringIO(text))
+    try:
+        return _parse_rows(reader, kind, source)
+    except csv.Error as exc:  # e.g. a field past the csv module's size limit
+        raise RunFileError(
+            f"{source}: row {reader.line_num}: not readable as CSV ({exc})"
+        ) from exc
+
+
+def _parse_rows(reader: Iterator[list[str]], kind: RunKind, source: str) -> Run:
+    required, optional = _kind_columns(kind)
     try:
         header = [name.strip() for name in next(reader)]
     except StopIteration:

@@ -8,10 +8,12 @@ inputs and answers the result's fields plus ``result_id``.
 from __future__ import annotations
 
 import importlib
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel
@@ -25,11 +27,13 @@ from api.schemas import (
     TorqueConstantRequest,
 )
 from api.uploads import parse_body
+from stand.errors import SolverError, StandError
 from stand.jsonable import to_jsonable
 from stand.runfile import RunKind
 from stand.storage import Storage
 
 router = APIRouter(tags=["analysis"])
+log = logging.getLogger("stand.api")
 
 
 def _domain(name: str, *modules: str) -> Callable[..., Any]:
@@ -103,7 +107,16 @@ def _load_runs(storage: Storage, op: Operation, body: BaseModel) -> dict[str, An
 
 def _execute(storage: Storage, op: Operation, body: BaseModel) -> dict[str, Any]:
     runs = _load_runs(storage, op, body)
-    result = to_jsonable(op.call(body, runs))
+    try:
+        result = to_jsonable(op.call(body, runs))
+    except StandError:
+        raise
+    except (ValueError, ArithmeticError, IndexError, np.linalg.LinAlgError) as exc:
+        # A numerical method that chokes on valid but odd data: the caller's data, not the
+        # service, is the problem (422); the traceback is logged for the method's authors.
+        log.exception("%s failed on %s", op.name, body.model_dump(mode="json"))
+        raise SolverError(f"{op.name}: the method failed on these runs: "
+                          f"{type(exc).__name__}: {exc}") from exc
     inputs = body.model_dump(mode="json")
     result_id = storage.add_result(op.name, inputs, result)
     return {**result, "result_id": result_id, "inputs": inputs}

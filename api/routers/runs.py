@@ -16,7 +16,7 @@ from api.schemas import RunRequest
 from api.uploads import read_upload
 from stand.jsonable import to_jsonable
 from stand.runfile import format_run
-from stand.storage import LIVE_STATES, RunRecord
+from stand.storage import LIVE_STATES, RunRecord, Storage
 
 router = APIRouter(prefix="/runs", tags=["runs"])
 
@@ -101,7 +101,7 @@ def _event(name: str, data: Any) -> str:
     return f"event: {name}\ndata: {json.dumps(to_jsonable(data), allow_nan=False)}\n\n"
 
 
-async def _events(run_id: str, storage: Any) -> AsyncIterator[str]:
+async def _events(run_id: str, storage: Storage) -> AsyncIterator[str]:
     sent = 0
     while True:
         record: RunRecord = await run_in_threadpool(storage.get_run, run_id)

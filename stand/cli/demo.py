@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from stand.errors import InputError
+from stand.jobs import SIMULATED_MASTER_OPTIONS
 from stand.jsonable import to_jsonable
 from stand.settings import get_settings
 
@@ -26,9 +27,6 @@ log = logging.getLogger("stand")
 DEMO_REPEATS = 3
 DEMO_DURATION_S = 5.0
 DEMO_CHANNEL = "motorstand-demo"
-#: Heartbeat period of the simulated drives, s: they share the CPU with the master, and a
-#: heartbeat missed under load would abort a run although no drive failed.
-DEMO_HEARTBEAT_PERIOD_S = 0.5
 #: Diagnosis runs: length, s, and speed excursion around standstill as a fraction of the
 #: limit. They reverse: the seed's forward-only runs cannot tell Coulomb friction
 #: (sign ω constant) from a current offset, so they do not let the diagnosis separate them.
@@ -70,7 +68,7 @@ def _run_experiment(experiment: Any, out: Path) -> Any:
             log.info("  %s: %3d %%", experiment.name, 10 * tenth)
 
     with StandBus(experiment.stand or experiment.motor, BusConfig("virtual", DEMO_CHANNEL),
-                  seed=experiment.seed, heartbeat_period_s=DEMO_HEARTBEAT_PERIOD_S) as bus:
+                  seed=experiment.seed, **SIMULATED_MASTER_OPTIONS) as bus:
         result = StandController(bus, "lockstep", progress=progress).run_experiment(experiment, out)
     log.info("  %s: %d run(s), %.1f s of stand time in %.1f s", experiment.name, len(result.runs),
              sum(r.stand_time_s for r in result.runs), time.monotonic() - started)
@@ -95,7 +93,7 @@ def _diagnosis_runs(out: Path, motor_name: str, period_s: float) -> list[Any]:
     samples = int(round(DIAGNOSIS_DURATION_S / period_s))
     records = []
     with StandBus(motor_name, BusConfig("virtual", DEMO_CHANNEL), seed=DIAGNOSIS_SEED,
-                  heartbeat_period_s=DEMO_HEARTBEAT_PERIOD_S) as bus:
+                  **SIMULATED_MASTER_OPTIONS) as bus:
         controller = StandController(bus, "lockstep")
         for k, name in enumerate(("train", "holdout")):
             command = multisine(samples, period_s, 0.0,

@@ -14,6 +14,7 @@ the same torque; with ``kt`` given also in N·m.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from stand.diagnose.model import FittedModel, ModelSpec, fit_residual_batch
@@ -39,13 +40,13 @@ MAX_GAP_RAD = 0.3
 NO_FIT = ModelSpec(input_weight=-1.0)
 
 
-def _best(specs: list[ModelSpec], train: Signals, positive: str | None = None) -> ModelSpec:
-    """The spec of smallest equation-error RMS on ``train``; with ``positive``, only among
-    fits whose coefficient of that column is positive (the physical sign)."""
+def _best(specs: list[ModelSpec], train: Signals, negative: str | None = None) -> ModelSpec:
+    """The spec of smallest equation-error RMS on ``train``; with ``negative``, only among
+    fits whose coefficient of that column is negative (the physical sign)."""
     rms, coef = fit_residual_batch(specs, train)
-    if positive is not None:
-        column = specs[0].names().index(positive)
-        rms = np.where(coef[:, column] > 0, rms, np.inf)
+    if negative is not None:
+        column = specs[0].names().index(negative)
+        rms = np.where(coef[:, column] < 0, rms, np.inf)
         if not np.isfinite(rms).any():
             return NO_FIT
     return specs[int(np.argmin(rms))]
@@ -80,7 +81,7 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
         low = max(2 * train.quant_rad, MIN_GAP_RAD)
         grid = np.geomspace(low, max(MAX_GAP_RAD, 4 * low), GRID_POINTS)
         return _best([base.merged(ModelSpec(backlash_gap=float(g))) for g in grid], train,
-                     positive="free_current")
+                     negative="load_accel")
     raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 
@@ -102,6 +103,11 @@ def _phase(model: FittedModel, prefix: str) -> tuple[float, float]:
 AGREE_RATIO = 3.0
 
 
+#: Smallest static excess ``(Ts − Tc)/Tc`` that makes friction Stribeck rather than
+#: Coulomb friction (below it the two are the same within what the data resolve).
+STRIBECK_MIN_EXCESS = 0.25
+
+
 def _ratio_ok(a: float, b: float, limit: float = AGREE_RATIO) -> bool:
     return a * b > 0 and max(abs(a), abs(b)) <= limit * min(abs(a), abs(b))
 
@@ -110,7 +116,8 @@ def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
     """Whether ``effect`` fitted on two independent runs is the same effect: the same
     order or delay, and sizes (and grid parameters) of the same sign within
     ``AGREE_RATIO``. A real effect is found again; one that fits a coincidence of TRAIN
-    is not."""
+    is not. Stribeck friction also needs a static excess of at least
+    ``STRIBECK_MIN_EXCESS`` on both runs."""
     a, b = first.spec, second.spec
     ca, cb = first.coef, second.coef
     if NO_FIT in (a, b):
@@ -119,7 +126,8 @@ def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
         return ca["sign"] < 0 and _ratio_ok(ca["sign"], cb["sign"])
     if effect == "stribeck_friction":
         sa, sb = ca["sign"] + ca["stribeck"], cb["sign"] + cb["stribeck"]
-        return (sa < 0 and _ratio_ok(sa, sb) and ca["stribeck"] < 0 and cb["stribeck"] < 0
+        resolved = all(c["stribeck"] < -STRIBECK_MIN_EXCESS * abs(c["sign"]) for c in (ca, cb))
+        return (sa < 0 and _ratio_ok(sa, sb) and resolved
                 and a.stribeck_ws is not None
                 and b.stribeck_ws is not None and _ratio_ok(a.stribeck_ws, b.stribeck_ws))
     if effect == "current_offset":
@@ -133,7 +141,7 @@ def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
         return order_a == order_b and _ratio_ok(_phase(first, prefix)[0], _phase(second, prefix)[0])
     if effect == "backlash":
         return (a.backlash_gap is not None and b.backlash_gap is not None
-                and ca["free_current"] > 0 and cb["free_current"] > 0
+                and ca["load_accel"] < 0 and cb["load_accel"] < 0
                 and _ratio_ok(a.backlash_gap, b.backlash_gap, 2 * AGREE_RATIO))
     raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
@@ -165,9 +173,10 @@ def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float
         out["k"] = spec.delay
     elif effect == "backlash":
         out["gap"] = spec.backlash_gap
-        out["J_load_over_J"] = max(c["free_current"] / c["current"], 0.0)
+        ratio = max(-c["load_accel"], 0.0)
+        out["J_load_over_J"] = ratio
         if kt is not None:
-            out["J_load"] = out["J_load_over_J"] * kt / c["current"]
+            out["J_load"] = ratio * kt / c["current"]
     elif effect == "torque_ripple":
         amplitude, phase = _phase(model, "rip")
         out["eps"] = amplitude / c["current"]

@@ -9,8 +9,9 @@
    and a paired per-segment test of the improvement (:mod:`.significance`).
    A candidate counts only when the same search on HOLDOUT finds the same effect
    again (same order or delay, similar size: :func:`.candidates.agree`).
-4. Take the significant candidate with the smallest gap (a nested simpler candidate,
-   Coulomb inside Stribeck, is kept unless the richer one is significantly better); then
+4. Take the significant candidate with the smallest gap (Stribeck friction, which
+   nests Coulomb friction, wins over it when it is significant itself, i.e. when both
+   runs resolve its static excess); then
    add further effects greedily while an addition still improves HOLDOUT significantly.
 """
 
@@ -22,11 +23,10 @@ import numpy as np
 
 from stand.diagnose import candidates
 from stand.diagnose.candidates import NO_FIT
-from stand.diagnose.model import FittedModel, ModelSpec, Segments, fit, segments, simulate
-from stand.diagnose.model import equation_residual
+from stand.diagnose.model import FittedModel, ModelSpec, Segments, equation_residual, fit, segments, simulate
 from stand.diagnose.report import Diagnosis, EffectScore
-from stand.diagnose.significance import PairedTest, paired_improvement
 from stand.diagnose.signals import Signals, prepare
+from stand.diagnose.significance import paired_improvement
 from stand.diagnose.where import locate
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run
@@ -208,10 +208,8 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     if not significant:
         return [], base
     first = min(significant, key=lambda n: singles[n].gap)
-    if first == "stribeck_friction" and "coulomb_friction" in significant:
-        richer = paired_improvement(singles["coulomb_friction"].sse, singles[first].sse)
-        if not richer.significant(1):
-            first = "coulomb_friction"
+    if first == "coulomb_friction" and "stribeck_friction" in significant:
+        first = "stribeck_friction"  # its resolved static excess is what makes it count
     chosen, current = [first], singles[first]
     while len(chosen) < max_effects:
         remaining = [n for n in candidates.EFFECTS if n not in chosen

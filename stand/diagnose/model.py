@@ -34,6 +34,11 @@ EDGE_SAMPLES = 50
 MAX_RATE_STEP = 0.1
 #: Most sub-steps per sample in the simulation.
 MAX_SUBSTEPS = 20
+#: Velocity resolution of a run, in encoder counts per sample period (of the filtered
+#: velocity, which averages over several samples).
+VELOCITY_RESOLUTION_COUNTS = 0.4
+#: Least friction smoothing speed, as a fraction of the run's 95th-percentile speed.
+FRICTION_SMOOTHING_FRACTION = 1e-3
 
 
 @dataclass(frozen=True)
@@ -56,11 +61,9 @@ class ModelSpec:
         Order of ``i·sin(Nθ)``, ``i·cos(Nθ)`` torque terms.
     backlash_gap : float or None
         Half width of a dead zone to a load inertia, rad. The kinematic load estimate
-        (:func:`load_estimate`) tells when the load is carried (contact) and when the
-        motor moves alone in the gap; the regressor ``free_current`` (the current while
-        the motor is alone) measures how much lighter it is then: the coefficients of
-        the model are those of motor and load together, and alone every torque
-        accelerates ``1 + J_load/J`` times more, ``J_load/J = c_free / c_i``.
+        (:func:`load_estimate`) gives the load's acceleration (carried along, or
+        coasting in the gap, with momentum exchanged at each impact); the regressor
+        ``load_accel`` with coefficient ``−J_load/J`` is the torque the load takes.
     input_weight : float
         How the current between two samples is reconstructed: over the period from
         sample ``n`` to ``n + 1`` it is ``(1 − w)·i[n] + w·i[n + 1]``. ``0.5`` is the
@@ -97,7 +100,7 @@ class ModelSpec:
         if self.ripple_N is not None:
             out += ["rip_sin", "rip_cos"]
         if self.backlash_gap is not None:
-            out.append("free_current")
+            out.append("load_accel")
         return out
 
     def merged(self, other: ModelSpec) -> ModelSpec:
@@ -192,40 +195,68 @@ def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float,
     return theta_l, omega_l
 
 
+def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
+    """What input column ``name`` of ``spec`` depends on (the key of the filter cache)."""
+    current = (spec.delay, spec.input_weight)
+    return {
+        "current": ("current", *current), "one": ("one",), "sign": ("sign",),
+        "stribeck": ("stribeck", spec.stribeck_ws), "cog_sin": ("cog_sin", spec.cogging_N),
+        "cog_cos": ("cog_cos", spec.cogging_N), "rip_sin": ("rip_sin", spec.ripple_N, *current),
+        "rip_cos": ("rip_cos", spec.ripple_N, *current), "load_accel": ("load", spec.backlash_gap),
+    }[name]
+
+
+def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
+    """Unfiltered input column ``name`` of ``spec`` on the measured run ``sig``."""
+    theta, omega = sig.theta_f, sig.omega_f
+    if name == "current":
+        return sample_current(shifted(sig.current, spec.delay), spec.input_weight)
+    if name == "one":
+        return np.ones(len(theta))
+    if name == "sign":
+        return velocity_sign(omega, sig)
+    if name == "stribeck":
+        ws = spec.stribeck_ws or 1.0
+        return velocity_sign(omega, sig) * np.exp(-((omega / ws) ** 2))
+    if name in ("cog_sin", "cog_cos"):
+        angle = (spec.cogging_N or 0) * theta
+        return np.sin(angle) if name == "cog_sin" else np.cos(angle)
+    if name in ("rip_sin", "rip_cos"):
+        angle = (spec.ripple_N or 0) * theta
+        current = _column(spec, sig, "current")
+        return current * (np.sin(angle) if name == "rip_sin" else np.cos(angle))
+    if name == "load_accel":
+        _, omega_l = load_estimate(theta, omega, spec.backlash_gap or 0.0, sig.dt_s)
+        return np.asarray(np.gradient(omega_l, sig.dt_s))
+    raise ValueError(f"unknown input column {name!r}")
+
+
 def regressors(spec: ModelSpec, sig: Signals) -> dict[str, np.ndarray]:
     """Unfiltered input columns of ``spec`` on the measured run ``sig``."""
-    theta, omega = sig.theta_f, sig.omega_f
-    current = sample_current(shifted(sig.current, spec.delay), spec.input_weight)
-    cols: dict[str, np.ndarray] = {"current": current}
-    if spec.offset:
-        cols["one"] = np.ones(len(theta))
-    if "sign" in spec.names():
-        cols["sign"] = velocity_sign(omega, sig)
-    if spec.stribeck_ws is not None:
-        cols["stribeck"] = cols["sign"] * np.exp(-((omega / spec.stribeck_ws) ** 2))
-    if spec.cogging_N is not None:
-        cols["cog_sin"] = np.sin(spec.cogging_N * theta)
-        cols["cog_cos"] = np.cos(spec.cogging_N * theta)
-    if spec.ripple_N is not None:
-        cols["rip_sin"] = current * np.sin(spec.ripple_N * theta)
-        cols["rip_cos"] = current * np.cos(spec.ripple_N * theta)
-    if spec.backlash_gap is not None:
-        theta_l, _ = load_estimate(theta, omega, spec.backlash_gap, sig.dt_s)
-        free = np.abs(theta - theta_l) < spec.backlash_gap * (1 - 1e-9)
-        cols["free_current"] = current * free
-    return cols
+    return {name: _column(spec, sig, name) for name in spec.names()}
+
+
+def filtered_inputs(spec: ModelSpec, sig: Signals) -> np.ndarray:
+    """The input columns of ``spec`` through the run's low-pass, shape (samples, columns).
+
+    Filtered columns are cached on ``sig`` (they are reused across the searches)."""
+    columns = []
+    for name in spec.names():
+        key = _column_key(spec, name)
+        if key not in sig.cache:
+            sig.cache[key] = sig.filt(_column(spec, sig, name))
+        columns.append(sig.cache[key])
+    return np.column_stack(columns)
 
 
 def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:
     """``sign(ω)``, zero where ``|ω|`` is below the velocity resolution of the run."""
-    resolution = 2.0 * sig.quant_rad / sig.dt_s * 0.2
+    resolution = VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s
     return np.where(np.abs(omega) > resolution, np.sign(omega), 0.0)
 
 
 def _stack(spec: ModelSpec, sig: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    cols = regressors(spec, sig)
-    u = np.column_stack([cols[name] for name in spec.names()])
-    u_f = sig.filt(u)
+    u_f = filtered_inputs(spec, sig)
     keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
     if spec.spring:
         x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
@@ -283,8 +314,7 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
 
 def equation_residual(model: FittedModel, sig: Signals) -> np.ndarray:
     """Equation error of ``model`` on ``sig`` (filtered signals), rad/s², full length."""
-    cols = regressors(model.spec, sig)
-    u = sig.filt(np.column_stack([cols[name] for name in model.spec.names()]))
+    u = filtered_inputs(model.spec, sig)
     pred = (model.c_theta * sig.theta_f + model.c_omega * sig.omega_f
             + u @ np.array([model.coef[name] for name in model.spec.names()]))
     return np.asarray(sig.accel_f - pred)
@@ -325,14 +355,14 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     drive = current[seg.index]
     st = _State(sig.theta_f[seg.starts].copy(), sig.omega_f[seg.starts].copy())
     gap = spec.backlash_gap
-    ratio = max(c.get("free_current", 0.0) / c["current"], 0.0)
+    ratio = max(-c.get("load_accel", 0.0), 0.0)
     if gap is not None:
         tl, wl = load_estimate(sig.theta_f, sig.omega_f, gap, dt)
         st.theta_l, st.omega_l = tl[seg.starts].copy(), wl[seg.starts].copy()
     fc = -c.get("sign", 0.0)
     fs = -c.get("stribeck", 0.0)
     ws = spec.stribeck_ws or 1.0
-    breakaway = max(fc + fs, 0.0)
+    smooth = friction_smoothing(sig)
     friction = "sign" in c
     rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
                (spec.cogging_N or 0) * float(np.max(np.abs(sig.omega_f))),
@@ -343,12 +373,12 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     for j in range(seg.horizon):
         out[:, j] = st.omega
         for _ in range(n_sub):
-            _step(model, st, drive[:, j], h, friction, fc, fs, ws, breakaway, gap, ratio)
+            _step(model, st, drive[:, j], h, friction, fc, fs, ws, smooth, gap, ratio)
     return out
 
 
 def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: bool,
-          fc: float, fs: float, ws: float, breakaway: float, gap: float | None,
+          fc: float, fs: float, ws: float, smooth: float, gap: float | None,
           ratio: float) -> None:
     spec, c = model.spec, model.coef
     theta, omega = st.theta, st.omega
@@ -369,15 +399,15 @@ def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: boo
         level = fc + fs * np.exp(-((omega / ws) ** 2)) if friction else 0.0
         a_motor = a - level * np.sign(omega)
         side = np.where(side * a_motor > 0, side, 0.0)
-        scale = np.where(side != 0, 1.0, 1.0 + ratio)
+        scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
     if friction:
+        # Friction stepped implicitly (stable for any smoothing): where it can stop the
+        # shaft within the step the speed goes to the linear regime of tanh near zero.
         level = fc + fs * np.exp(-((omega / ws) ** 2))
-        moving = omega != 0.0
-        new = omega + h * scale * (a - level * np.sign(omega))
-        new = np.where(moving & (new * omega < 0), 0.0, new)
-        breaks = np.abs(a) > breakaway
-        start = h * scale * (a - breakaway * np.sign(a))
-        new = np.where(moving, new, np.where(breaks, start, 0.0))
+        free = omega + h * scale * a
+        stop = h * scale * np.maximum(level, 0.0)
+        new = np.where(np.abs(free) > stop, free - stop * np.sign(free), free / (1.0 + stop / smooth))
+        new = np.where(level < 0, free - h * scale * level * np.tanh(omega / smooth), new)
     else:
         new = omega + h * scale * a
     st.theta = theta + 0.5 * h * (omega + new)
@@ -393,6 +423,21 @@ def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: boo
         st.omega = np.where(hit, v, st.omega)
         st.omega_l = np.where(hit, v, st.omega_l)
         st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
+
+
+def friction_smoothing(sig: Signals) -> float:
+    """Speed over which simulated friction changes sign, rad/s: ``sign(ω)`` becomes
+    ``tanh(ω/ε)`` with ε the run's velocity resolution (as in :func:`velocity_sign`), at
+    least ``FRICTION_SMOOTHING_FRACTION`` of its 95th-percentile speed.
+
+    A hard sign with stiction (Karnopp) makes the free run flip the friction torque at
+    the simulated, not the real, zero crossing and stick where the real shaft moved; a
+    friction that changes sign within the velocity resolution keeps the free run close
+    to the measured one without claiming more than the data resolve near standstill.
+    """
+    top = float(np.quantile(np.abs(sig.omega_f), 0.95))
+    return max(VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s,
+               FRICTION_SMOOTHING_FRACTION * top, 1e-12)
 
 
 def segments(n: int, dt_s: float, horizon_s: float, min_segments: int) -> Segments:

@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from matplotlib.axes import Axes
 
 from stand.diagnose.engine import Traces
 from stand.diagnose.report import Diagnosis
@@ -46,17 +47,17 @@ def write_plots(folder: str | Path, diagnosis: Diagnosis, traces: Traces) -> lis
     return paths
 
 
-def _speed(ax, t: Traces, d: Diagnosis) -> None:  # type: ignore[no-untyped-def]
+def _speed(ax: Axes, t: Traces, d: Diagnosis) -> None:
     time = t.time_s.reshape(-1)
     keep = time <= time[0] + SPEED_WINDOW_S
     order = np.argsort(time[keep])
-    for values, label, style in (
-        (t.measured, "measured", dict(color="k", lw=1.0)),
-        (t.nominal, f"nominal model (gap {d.gap_percent:.2f} %)", dict(color="C3", lw=0.9)),
-        (t.verdict, f"with {d.verdict} (gap {d.verdict_gap_percent:.2f} %)",
-         dict(color="C0", lw=0.9, ls="--")),
+    for values, label, color, style in (
+        (t.measured, "measured", "k", "-"),
+        (t.nominal, f"nominal model (gap {d.gap_percent:.2f} %)", "C3", "-"),
+        (t.verdict, f"with {d.verdict} (gap {d.verdict_gap_percent:.2f} %)", "C0", "--"),
     ):
-        ax.plot(time[keep][order], values.reshape(-1)[keep][order], label=label, **style)
+        ax.plot(time[keep][order], values.reshape(-1)[keep][order], label=label, color=color,
+                ls=style, lw=0.9)
     ax.set_xlabel("time, s")
     ax.set_ylabel("speed, rad/s")
     ax.set_title("HOLDOUT speed, simulated from the measured current "
@@ -68,7 +69,7 @@ def _thin(n: int) -> np.ndarray:
     return np.arange(0, n, max(1, n // SCATTER_POINTS))
 
 
-def _vs_velocity(ax, t: Traces, d: Diagnosis) -> None:  # type: ignore[no-untyped-def]
+def _vs_velocity(ax: Axes, t: Traces, d: Diagnosis) -> None:
     pick = _thin(len(t.omega))
     ax.plot(t.omega[pick], t.residual[pick], ".", ms=1.5, alpha=0.4, color="C0")
     ax.axvline(0.0, color="k", lw=0.5)
@@ -77,7 +78,7 @@ def _vs_velocity(ax, t: Traces, d: Diagnosis) -> None:  # type: ignore[no-untype
     ax.set_title(f"nominal residual against velocity (regime: {d.where.regime})")
 
 
-def _vs_position(ax, t: Traces, d: Diagnosis) -> None:  # type: ignore[no-untyped-def]
+def _vs_position(ax: Axes, t: Traces, d: Diagnosis) -> None:
     pick = _thin(len(t.theta))
     angle = np.mod(t.theta[pick], 2 * math.pi)
     ax.plot(angle, t.residual[pick], ".", ms=1.5, alpha=0.4, color="C2")
@@ -88,7 +89,7 @@ def _vs_position(ax, t: Traces, d: Diagnosis) -> None:  # type: ignore[no-untype
                  + (f" ({order} cycles/rev)" if order else ""))
 
 
-def _spectrum(ax, t: Traces, d: Diagnosis) -> None:  # type: ignore[no-untyped-def]
+def _spectrum(ax: Axes, t: Traces, d: Diagnosis) -> None:
     from scipy import signal as sps
 
     freq, power = sps.welch(t.residual, fs=1.0 / t.dt_s, nperseg=min(1024, len(t.residual)))

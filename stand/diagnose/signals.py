@@ -14,7 +14,7 @@ a velocity column, so every run is treated alike. Two versions exist:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal as sps
@@ -63,6 +63,8 @@ class Signals:
     accel_f: np.ndarray
     quant_rad: float
     source: str
+    cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False,
+                                                        compare=False)
 
     def __len__(self) -> int:
         return len(self.theta)

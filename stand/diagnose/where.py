@@ -100,8 +100,8 @@ def _lag(residual: np.ndarray, current: np.ndarray, dt_s: float) -> float | None
     max_lag = max(1, int(round(MAX_LAG_S / dt_s)))
     lags = np.arange(-max_lag, max_lag + 1)
     n = len(r)
-    corr = np.array([np.sum(r[max(0, k):n + min(0, k)] * i[max(0, -k):n - max(0, k)])
-                     for k in lags]) / scale
+    corr = np.array([np.sum(r[max(0, int(k)):n + min(0, int(k))]
+                            * i[max(0, -int(k)):n - max(0, int(k))]) for k in lags]) / scale
     best = int(np.argmax(np.abs(corr)))
     # Standard error of a correlation of two coloured series: 1/sqrt(effective samples).
     effective = n / max(1.0, correlation_time(r) * correlation_time(i))

@@ -17,7 +17,7 @@ from schemathesis.checks import not_a_server_error
 from tests.integration.test_api_support import Server, serve
 
 #: Generated requests per operation; bounded to keep the suite fast on 2 cores.
-MAX_EXAMPLES = 80
+MAX_EXAMPLES = 15
 
 
 @pytest.fixture(scope="module")

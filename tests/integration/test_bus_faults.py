@@ -22,19 +22,26 @@ from stand.profiles import load_motor, load_stand
 from stand.runfile import parse_run
 
 STAND = "cycloidal_two_motor"
-#: Heartbeat period of these tests (the default; shorter ones false-alarm on a loaded
-#: 2-core machine, where a heartbeat thread may wait 30 ms for the GIL), s.
+#: Heartbeat period of the heartbeat test (the default), s.
 HEARTBEAT_S = 0.1
+#: Heartbeat period of the other tests: long enough that a one-CPU User-Mode Linux on a
+#: loaded host never starves a heartbeat into a false alarm, s.
+CALM_HEARTBEAT_S = 0.5
 #: A lockstep window whose TPDOs do not come is closed after this long (shrunk from 0.5 s
-#: for the PDO-loss test, still far above a thread switch on a loaded machine), s.
-PDO_TIMEOUT_S = 0.1
+#: for the PDO-loss test; still above the thread stalls of a one-CPU User-Mode Linux), s.
+PDO_TIMEOUT_S = 0.3
+#: Foreign frames a second from the chattering thread (CAN at 1 Mbit/s carries about 8,000
+#: frames/s of 8 bytes; this is a quarter of that on top of the stand's own traffic).
+FOREIGN_FRAMES_PER_S = 2000
+FOREIGN_BURST = 8
 #: The efficiency run of the two-motor stand, long enough to outlast every fault here.
 LONG = ExperimentProfile(name="long", procedure="efficiency", stand=STAND, duration_s=60.0)
 FAULT_AT_SAMPLE = 300
 
 
-def _stand_bus(config: BusConfig, **options: float) -> StandBus:
-    return StandBus(STAND, config, simulate=True, seed=1, heartbeat_period_s=HEARTBEAT_S,
+def _stand_bus(config: BusConfig, heartbeat_period_s: float = CALM_HEARTBEAT_S,
+               **options: float) -> StandBus:
+    return StandBus(STAND, config, simulate=True, seed=1, heartbeat_period_s=heartbeat_period_s,
                     **options)
 
 
@@ -52,7 +59,7 @@ def _fault_at(sample: int, action: object) -> object:
 
 def test_lost_heartbeat_aborts_and_quick_stops_every_drive(can_config: BusConfig,
                                                            tmp_path: Path) -> None:
-    with _stand_bus(can_config) as bus:
+    with _stand_bus(can_config, HEARTBEAT_S) as bus:
         assert bus.sim is not None
         drive_in, drive_out = bus.sim.nodes
         controller = StandController(bus)
@@ -85,7 +92,7 @@ def test_emcy_over_current_aborts_the_run(can_config: BusConfig, tmp_path: Path)
 def test_lost_pdos_are_counted_per_drive_and_never_filled(can_config: BusConfig,
                                                           tmp_path: Path) -> None:
     short = ExperimentProfile(name="short", procedure="efficiency", stand=STAND, duration_s=1.0)
-    drop_every = 200
+    drop_every = 400
     with _stand_bus(can_config, pdo_timeout_s=PDO_TIMEOUT_S) as bus:
         assert bus.sim is not None
         bus.sim.nodes[0].pdo_drop_every = drop_every
@@ -132,26 +139,33 @@ def test_foreign_traffic_at_high_load_loses_and_misreads_nothing(can_config: Bus
     def chatter() -> None:
         rng = random.Random(5)
         with can.Bus(interface=can_config.interface, channel=can_config.channel) as other:
+            start = time.monotonic()
             while not done.is_set():
-                msg = can.Message(arbitration_id=rng.choice(ids), is_extended_id=False,
-                                  data=rng.randbytes(rng.randint(0, 8)))
-                other.send(msg)
-                sent[0] += 1
-                if sent[0] % 20 == 0:
-                    time.sleep(0)
+                for _ in range(FOREIGN_BURST):
+                    extended = rng.random() < 0.3  # 29-bit frames may even alias our COB-IDs
+                    ident = rng.randrange(0x800) if extended else rng.choice(ids)
+                    other.send(can.Message(arbitration_id=ident, is_extended_id=extended,
+                                           data=rng.randbytes(rng.randint(0, 8))))
+                sent[0] += FOREIGN_BURST
+                done.wait(max(0.0, start + sent[0] / FOREIGN_FRAMES_PER_S - time.monotonic()))
 
     thread = threading.Thread(target=chatter, name="foreign-traffic")
-    thread.start()
+
+    def start_chatter(k: int, n: int) -> None:  # once the drives are set up and sampling
+        if k == 1:
+            thread.start()
+
+    (procedure, drives), = plan(short)
     try:
         with _stand_bus(can_config) as bus:
-            record = StandController(bus).run_experiment(short, tmp_path).runs[0]
+            record = StandController(bus).run_procedure(procedure, drives, tmp_path, start_chatter)
     finally:
         done.set()
-        thread.join()
+        if thread.is_alive():
+            thread.join()
     assert sent[0] > record.expected_samples, "the foreign traffic was not high"
     assert record.complete and record.lost == {1: 0, 2: 0} and record.duplicates == {1: 0, 2: 0}
     stand = load_stand(STAND)
-    (procedure, _), = plan(short)
     direct = simulate_stand_procedure(procedure, stand, load_motor(stand.motor_in),
                                       load_motor(stand.motor_out), seed=1)
     over_bus = parse_run(Path(record.path).read_text(), "reducer")  # type: ignore[arg-type]
@@ -169,3 +183,17 @@ def test_simstand_alone_sends_tpdos_only_when_operational(can_config: BusConfig)
             msg = probe.recv(0.05)
             assert msg is None or not 0x180 <= msg.arbitration_id < 0x200
         assert sim.nodes[0].syncs == 1  # the SYNC was seen, but no TPDO before OPERATIONAL
+
+
+def test_following_error_sends_emcy_and_aborts(can_config: BusConfig, tmp_path: Path) -> None:
+    with _stand_bus(can_config) as bus:
+        assert bus.sim is not None
+        drive_in = bus.sim.nodes[0]
+        drive_in.following_window_rad_s = 1e-3  # rad/s: below the 0.6 rad/s of one encoder count
+        (procedure, drives), = plan(LONG)
+        with pytest.raises(RunAborted, match="node 1: EMCY 0x8611") as info:
+            StandController(bus).run_procedure(procedure, drives, tmp_path)
+        assert isinstance(info.value.__cause__, DriveFault)
+        assert drive_in.sm.state is cia402.State.FAULT
+        assert bus.status()["nodes"][0]["last_emcy"] == "0x8611"
+        assert bus.sim.nodes[1].quick_stop_at is not None  # the other drive was quick-stopped

@@ -100,7 +100,8 @@ class SimstandProcess:
         return self.log_path.read_text()
 
     def wait_ready(self, timeout_s: float = SIMSTAND_READY_TIMEOUT_S) -> None:
-        """Block until the process prints ``ready`` (its nodes have booted) or fail."""
+        """Block until the process prints ``ready`` (its nodes have booted); raise
+        TimeoutError with the process's log otherwise."""
         assert self.proc.stdout is not None
         deadline = time.monotonic() + timeout_s
         with selectors.DefaultSelector() as sel:
@@ -113,8 +114,8 @@ class SimstandProcess:
                     if line == "":
                         break  # EOF: the process ended
         self.close()
-        pytest.fail(f"{' '.join(self.args)} not ready within {timeout_s} s "
-                    f"(exit {self.returncode}); its log:\n{self.log()}")
+        raise TimeoutError(f"{' '.join(self.args)} not ready within {timeout_s} s "
+                           f"(exit {self.returncode}); its log:\n{self.log()}")
 
     def close(self) -> int:
         """SIGTERM, wait, and return the exit status (SIGKILL after a timeout)."""

@@ -7,8 +7,9 @@
 # tests/vcan/uml_init.sh loads the CAN modules, creates vcan0 and runs
 #   pytest tests/vcan tests/integration/test_bus_*.py [PYTEST ARGS]
 # (without PYTEST ARGS: -k "not virtual", the bus cases' virtual variants run on the host;
-# with an argument naming a test path, only that path), then the SYNC jitter benchmark, and writes the exit status to a file this script reads.
-# The guest's console (the test output) is this script's stdout.
+# with an argument naming a test path, only that path), then tests/vcan/bench.py (frames/s,
+# SYNC jitter), and writes the exit status to a file this script reads. The guest's console
+# (the test output) is this script's stdout; this script's own messages go to stderr.
 #
 # Exit status: the suite's status; 1 when UML is missing, fails to boot, exceeds its time
 # limit or leaves no status file.
@@ -18,7 +19,8 @@
 #   VCAN_TIMEOUT_S       seconds for the whole run, boot included         (default 600)
 #   VCAN_TEST_TIMEOUT_S  seconds one test may take (pytest-timeout)       (default 120)
 #   VCAN_MEM             guest memory                                     (default 1G)
-#   VCAN_BENCH=0         skip the SYNC jitter benchmark
+#   VCAN_BENCH=0         skip the benchmark (frames/s, SYNC jitter)
+#   VCAN_PYTEST=0        skip the tests (only the benchmark)
 #   STAND_*, PYTEST_ADDOPTS, VCAN_*  are passed into the guest.
 set -uo pipefail
 

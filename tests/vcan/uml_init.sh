@@ -49,24 +49,26 @@ targets="tests/vcan $(ls tests/integration/test_bus_*.py 2>/dev/null | tr '\n' '
 for arg in "$@"; do
     case "$arg" in -*) ;; *) [ -e "${arg%%::*}" ] && targets="" ;; esac
 done
-# Without arguments: the bus cases on socketcan only; their [virtual] variants already ran
-# on the host (tests/run.sh), and the guest's one CPU keeps the suite under 5 minutes.
+# Without arguments: the bus cases on socketcan only. Their [virtual] variants already ran
+# on the host (tests/run.sh); skipping them here keeps the suite under 5 minutes on the
+# guest's one CPU.
 [ $# -eq 0 ] && set -- -k "not virtual"
-# -v names each test as it starts, so a hang shows where; --timeout ends a hung test with a
-# traceback well before run.sh's limit for the whole suite ends the guest.
-opts="-p no:cacheprovider -v --durations=8 --timeout=${VCAN_TEST_TIMEOUT_S:-120}"
-echo "uml_init: pytest $opts $targets$*"
-# shellcheck disable=SC2086  # word splitting of the option and target lists is intended
-"$VCAN_PY" -m pytest $opts $targets "$@"
-status=$?
-echo "uml_init: pytest exit status $status after $(( $(date +%s) - suite_start )) s"
+# -vv (pyproject's addopts has -q) names each test as it starts, so a hang shows where;
+# --timeout ends a hung test with a traceback well before run.sh's limit ends the guest.
+opts="-p no:cacheprovider -vv --durations=8 --timeout=${VCAN_TEST_TIMEOUT_S:-120}"
+if [ "${VCAN_PYTEST:-1}" != 0 ]; then
+    echo "uml_init: pytest $opts $targets$*"
+    # shellcheck disable=SC2086  # word splitting of the option and target lists is intended
+    "$VCAN_PY" -m pytest $opts $targets "$@"
+    status=$?
+    echo "uml_init: pytest exit status $status after $(( $(date +%s) - suite_start )) s"
+else
+    status=0
+fi
 
+# The benchmark prints figures; its timing depends on the host's load, so a failure there
+# is reported but does not fail the suite.
 if [ "${VCAN_BENCH:-1}" != 0 ]; then
-    "$VCAN_PY" -m tests.vcan.bench
-    bench=$?
-    if [ "$bench" != 0 ]; then
-        echo "uml_init: the vcan benchmark failed (status $bench)"
-        [ "$status" = 0 ] && status=$bench
-    fi
+    "$VCAN_PY" -m tests.vcan.bench || echo "uml_init: WARNING: the vcan benchmark failed (status $?)"
 fi
 exit "$status"
