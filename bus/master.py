@@ -24,6 +24,7 @@ import numpy as np
 from bus import cia402
 from bus.adapters import BusConfig, connect_network
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
+from bus.heartbeat import Supervisor
 from bus.sampler import Sampler, Samples
 from bus.sync import (
     SYNC_COB_ID,
@@ -34,16 +35,12 @@ from bus.sync import (
     check_time_mode,
 )
 from bus.trace import Trace
-from stand.errors import BusError, BusTimeout, DriveFault, HeartbeatLost, InputError
+from stand.errors import BusError, BusTimeout, InputError
 
 log = logging.getLogger(__name__)
 
 #: Heartbeat period the drives are told to produce (0x1017), s.
 HEARTBEAT_PERIOD_S = 0.1
-#: A heartbeat older than this many periods means the node is lost.
-HEARTBEAT_CONSUMER_FACTOR = 1.5
-#: On a silent bus, a heartbeat is lost after this many consumer times of wall time.
-SILENT_BUS_FACTOR = 2.0
 #: Time a drive may take to send its boot-up message after NMT reset node, s.
 BOOT_TIMEOUT_S = 2.0
 #: Lockstep: time the TPDOs of one SYNC may take before they count as lost, s. Generous:
@@ -54,7 +51,6 @@ POLL_S = 0.01
 #: Stand time the drives spend in quick stop after a run before they are disabled, s.
 STOP_RAMP_S = 0.1
 NMT_START, NMT_PRE_OPERATIONAL, NMT_RESET_NODE = 0x01, 0x80, 0x81
-NMT_STATE_NAMES = {0: "BOOT-UP", 4: "STOPPED", 5: "OPERATIONAL", 127: "PRE-OPERATIONAL"}
 
 ChunkCallback = Callable[[Samples, int, int], None]
 ProgressCallback = Callable[[int, int], None]
@@ -81,17 +77,6 @@ class MasterNetwork(canopen.Network):
             trace.sent(msg)
 
 
-class BusClock(can.Listener):
-    """The newest frame stamp the bus reader has handed on (bus time), s."""
-
-    def __init__(self) -> None:
-        self.newest = 0.0
-
-    def on_message_received(self, msg: can.Message) -> None:
-        if msg.timestamp > self.newest:
-            self.newest = msg.timestamp
-
-
 class Master:
     """The stand's CANopen master on one bus.
 
@@ -116,12 +101,7 @@ class Master:
         self.network.channel = self.config.channel
         connect_network(self.config, self.network)
         self.drives: list[Drive] = []
-        self._heartbeat: dict[int, tuple[float, int, float]] = {}
-        self._bus_clock = BusClock()
-        assert self.network.notifier is not None
-        self.network.notifier.add_listener(self._bus_clock)
-        self._booted: dict[int, threading.Event] = {}
-        self._emcy: dict[int, list[tuple[float, int]]] = {}
+        self.supervisor = Supervisor(self.network)
         self._counters: dict[int, dict[str, int]] = {}
         self._quick_stop = threading.Event()
         #: One counter for every SYNC the master sends (0x1019 is set on the drives).
@@ -133,28 +113,10 @@ class Master:
         self.time_mode = "lockstep"
         self.quick_stop_wall_s: float | None = None
 
-    # -- callbacks from the bus reader thread --------------------------------------------
-    def _on_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        node_id = can_id - 0x700
-        state = data[0] & 0x7F if data else 0
-        self._heartbeat[node_id] = (time.monotonic(), state, timestamp)
-        if state == 0 and node_id in self._booted:
-            self._booted[node_id].set()
-
-    def _on_emcy(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        node_id = can_id - 0x80
-        code = int.from_bytes(bytes(data[:2]), "little") if len(data) >= 2 else 0
-        if code:  # 0x0000 = error reset / no error
-            self._emcy.setdefault(node_id, []).append((time.monotonic(), code))
-            log.warning("node %d: EMCY 0x%04X", node_id, code)
-
     # -- setup -----------------------------------------------------------------------------
     def _forget_drives(self) -> None:
         for drive in self.drives:
-            for cob_id, callback in ((0x700 + drive.id, self._on_heartbeat),
-                                     (0x80 + drive.id, self._on_emcy)):
-                if callback in self.network.subscribers.get(cob_id, []):
-                    self.network.unsubscribe(cob_id, callback)
+            self.supervisor.forget(drive.id)
             self.network.nodes.pop(drive.id, None)
         self.drives = []
 
@@ -181,16 +143,12 @@ class Master:
         self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self.drives = [Drive(self.network, d, self.sdo_timeout_s) for d in drives]
         for drive in self.drives:
-            self._booted[drive.id] = threading.Event()
-            self._heartbeat.pop(drive.id, None)
-            self._emcy[drive.id] = []
+            self.supervisor.watch(drive.id)
             self._counters[drive.id] = {"lost": 0, "duplicates": 0, "late": 0}
-            self.network.subscribe(0x700 + drive.id, self._on_heartbeat)
-            self.network.subscribe(0x80 + drive.id, self._on_emcy)
         for drive in self.drives:
             self.network.send_message(0, bytes([NMT_RESET_NODE, drive.id]))
         for drive in self.drives:
-            if not self._booted[drive.id].wait(self.boot_timeout_s):
+            if not self.supervisor.booted[drive.id].wait(self.boot_timeout_s):
                 raise BusTimeout(f"node {drive.id}: no boot-up message within {self.boot_timeout_s} s "
                                  "after NMT reset node; is the drive powered, on this bus, at this id?")
         for n, drive in enumerate(self.drives):
@@ -230,33 +188,10 @@ class Master:
 
     # -- supervision -----------------------------------------------------------------------
     def heartbeat_age_s(self, node_id: int) -> float | None:
-        beat = self._heartbeat.get(node_id)
-        return None if beat is None else time.monotonic() - beat[0]
+        return self.supervisor.age_s(node_id)
 
     def _check_nodes(self) -> BusError | None:
-        """A heartbeat loss or an EMCY, or None.
-
-        A heartbeat is late when the bus has carried frames stamped more than the consumer
-        time after it (bus time: the stamps the interface puts on frames), so a reader thread
-        that the OS holds up for a while does not raise a false alarm; when the bus falls
-        silent altogether, wall time decides, after twice the consumer time.
-        """
-        limit = HEARTBEAT_CONSUMER_FACTOR * self.heartbeat_period_s
-        newest = self._bus_clock.newest
-        for drive in self.drives:
-            beat = self._heartbeat.get(drive.id)
-            if beat is None:
-                continue
-            received, _, stamp = beat
-            bus_age, wall_age = newest - stamp, time.monotonic() - received
-            if bus_age > limit or wall_age > SILENT_BUS_FACTOR * limit:
-                return HeartbeatLost(f"node {drive.id}: no heartbeat for {max(bus_age, wall_age):.3f} s "
-                                     f"(period {self.heartbeat_period_s} s); every drive was quick-stopped")
-        for drive in self.drives:
-            if self._emcy.get(drive.id):
-                _, code = self._emcy[drive.id][-1]
-                return DriveFault(f"node {drive.id}: EMCY 0x{code:04X}; every drive was quick-stopped")
-        return None
+        return self.supervisor.check([d.id for d in self.drives], self.heartbeat_period_s)
 
     def quick_stop_all(self) -> None:
         """Send CiA 402 quick stop to every drive at once (RPDO frames, back to back).
@@ -405,17 +340,9 @@ class Master:
         """Nodes, NMT states, heartbeat ages, EMCY and PDO error counters (JSON data)."""
         nodes = []
         for drive in self.drives:
-            beat = self._heartbeat.get(drive.id)
-            emcy = self._emcy.get(drive.id, [])
-            nodes.append({
-                "node_id": drive.id,
-                "mode": drive.config.mode,
-                "nmt_state": NMT_STATE_NAMES.get(beat[1], str(beat[1])) if beat else "UNKNOWN",
-                "heartbeat_age_s": self.heartbeat_age_s(drive.id),
-                "emcy_count": len(emcy),
-                "last_emcy": f"0x{emcy[-1][1]:04X}" if emcy else None,
-                **self._counters.get(drive.id, {}),
-            })
+            nodes.append({"node_id": drive.id, "mode": drive.config.mode,
+                          **self.supervisor.node_status(drive.id),
+                          **self._counters.get(drive.id, {})})
         return {"interface": self.config.interface, "channel": self.config.channel,
                 "running": self.running, "time_mode": self.time_mode, "period_s": self.period_s,
                 "window": self.window, "nodes": nodes}

@@ -4,10 +4,11 @@
 its gap on HOLDOUT, says where it lies, scores every effect of the vocabulary as a model
 extension, and names the one (or the few) that explain the gap, or ``none``.
 
-Modules: :mod:`.signals` (derived signals), :mod:`.model` (regressors, fit, simulation),
-:mod:`.candidates` (effects as extensions), :mod:`.significance` (noise-aware test),
-:mod:`.where` (residual analysis), :mod:`.engine` (the procedure), :mod:`.report`
-(result objects), :mod:`.plots` (figures).
+Modules: :mod:`.signals` (derived signals), :mod:`.model` (regressors and Q-matrix fit),
+:mod:`.simulate` (re-anchored free run), :mod:`.candidates` (effects as extensions),
+:mod:`.significance` (noise-aware test), :mod:`.where` (residual analysis),
+:mod:`.engine` (the procedure), :mod:`.report` (result objects), :mod:`.plots`
+(figures), :mod:`.benchmark` (blind benchmark on simulated stands).
 """
 
 from stand.diagnose.engine import diagnose

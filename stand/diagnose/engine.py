@@ -23,10 +23,11 @@ import numpy as np
 
 from stand.diagnose import candidates
 from stand.diagnose.candidates import NO_FIT
-from stand.diagnose.model import FittedModel, ModelSpec, Segments, equation_residual, fit, segments, simulate
+from stand.diagnose.model import FittedModel, ModelSpec, equation_residual, fit
 from stand.diagnose.report import Diagnosis, EffectScore
 from stand.diagnose.signals import Signals, prepare
 from stand.diagnose.significance import paired_improvement
+from stand.diagnose.simulate import Segments, segments, simulate
 from stand.diagnose.where import locate
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run

@@ -31,8 +31,9 @@ CALM_HEARTBEAT_S = 0.5
 #: for the PDO-loss test; still above the thread stalls of a one-CPU User-Mode Linux), s.
 PDO_TIMEOUT_S = 0.3
 #: Foreign frames a second from the chattering thread (CAN at 1 Mbit/s carries about 8,000
-#: frames/s of 8 bytes; this is a quarter of that on top of the stand's own traffic).
-FOREIGN_FRAMES_PER_S = 2000
+#: frames/s of 8 bytes; this is an eighth of that on top of the stand's own lockstep
+#: traffic of 7 frames a SYNC, itself more than a real 1 Mbit/s bus could carry).
+FOREIGN_FRAMES_PER_S = 1000
 FOREIGN_BURST = 8
 #: The efficiency run of the two-motor stand, long enough to outlast every fault here.
 LONG = ExperimentProfile(name="long", procedure="efficiency", stand=STAND, duration_s=60.0)
@@ -156,14 +157,16 @@ def test_foreign_traffic_at_high_load_loses_and_misreads_nothing(can_config: Bus
             thread.start()
 
     (procedure, drives), = plan(short)
-    try:
-        with _stand_bus(can_config) as bus:
+    try:  # one interpreter runs master, drives and chatter: a calm heartbeat, not under test
+        with _stand_bus(can_config, 2 * CALM_HEARTBEAT_S) as bus:
             record = StandController(bus).run_procedure(procedure, drives, tmp_path, start_chatter)
     finally:
         done.set()
         if thread.is_alive():
             thread.join()
-    assert sent[0] > record.expected_samples, "the foreign traffic was not high"
+    # The chatter kept at least half its rate over the run (it paces itself, so more is
+    # not possible; less means the load did not run).
+    assert sent[0] >= 0.5 * FOREIGN_FRAMES_PER_S * record.wall_time_s, f"only {sent[0]} foreign frames"
     assert record.complete and record.lost == {1: 0, 2: 0} and record.duplicates == {1: 0, 2: 0}
     stand = load_stand(STAND)
     direct = simulate_stand_procedure(procedure, stand, load_motor(stand.motor_in),

@@ -56,11 +56,11 @@ def cangen_to_python_fps(frames: int = THROUGHPUT_FRAMES) -> tuple[float, int]:
     try:
         got = 0
         with Cangen(CHANNEL, gap_ms=0, ident="555", extra=["-L", "8"], count=frames):
-            start = time.perf_counter()
+            start = last = time.perf_counter()
             while got < frames and rx.recv(0.5) is not None:
                 got += 1
-            elapsed = time.perf_counter() - start
-        return got / elapsed, got
+                last = time.perf_counter()
+        return got / (last - start), got
     finally:
         rx.shutdown()
 

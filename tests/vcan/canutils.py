@@ -75,7 +75,8 @@ class Candump:
     Used as a context manager: on entry candump is started and a START marker is sent until
     candump has logged it (so nothing sent afterwards can be missed); on exit a STOP marker is
     sent, candump is read up to it and ended. ``frames`` then holds every frame between the
-    markers, in bus order, markers excluded.
+    markers, in bus order, markers excluded, and ``drop_reports`` candump's reports of frames
+    its socket dropped (``-d``; empty when it saw everything).
 
     Parameters
     ----------
@@ -124,7 +125,7 @@ class Candump:
                 self._cond.notify_all()
 
     def _seen(self, payload: bytes) -> bool:
-        for line in self._lines:
+        for line in reversed(self._lines):  # a marker just sent is near the end
             frame = parse_candump_line(line)
             if frame is not None and frame.arbitration_id == MARKER_ID and frame.data == payload:
                 return True

@@ -8,7 +8,7 @@
 #   pytest tests/vcan tests/integration/test_bus_*.py [PYTEST ARGS]
 # (without PYTEST ARGS: -k "not virtual", the bus cases' virtual variants run on the host;
 # with an argument naming a test path, only that path), then tests/vcan/bench.py (frames/s,
-# SYNC jitter), and writes the exit status to a file this script reads. The guest's console
+# SYNC jitter) and tests/bench/bench_bus.py on vcan0, and writes the exit status to a file this script reads. The guest's console
 # (the test output) is this script's stdout; this script's own messages go to stderr.
 #
 # Exit status: the suite's status; 1 when UML is missing, fails to boot, exceeds its time
@@ -21,6 +21,7 @@
 #   VCAN_MEM             guest memory                                     (default 1G)
 #   VCAN_BENCH=0         skip the benchmark (frames/s, SYNC jitter)
 #   VCAN_PYTEST=0        skip the tests (only the benchmark)
+#   VCAN_BUS_BENCH_ARGS  options of tests/bench/bench_bus.py   (default --duration 2 --realtime-s 2)
 #   STAND_*, PYTEST_ADDOPTS, VCAN_*  are passed into the guest.
 set -uo pipefail
 

@@ -48,6 +48,8 @@ PDO_TIMEOUT_S = 0.5
 #: drive process that shares the guest's one CPU with candump and cangen.
 SDO_TIMEOUT_S = 1.0
 BOOT_TIMEOUT_S = 5.0
+#: Time the capture goes on after a realtime run, for answers of a late drive, s.
+LATE_ANSWER_S = 0.3
 #: Fewest SYNC windows a realtime run under load must record for its check to mean something.
 MIN_WINDOWS = 50
 #: Foreign 11-bit identifier used for load: in CiA 301's reserved range 0x780..0x7E3, so no
@@ -89,43 +91,72 @@ def _windows(frames: list[Frame]) -> list[list[Frame]]:
     return out
 
 
-def _wire_samples(frames: list[Frame], count: int) -> dict[str, np.ndarray]:
-    """Raw TPDO values that answered each of the first ``count`` SYNCs of the capture, decoded
-    from the bytes by their CiA 402 types: TPDO1 = position actual (INTEGER32) + current
-    actual (INTEGER16), TPDO2 = velocity actual (INTEGER32) + voltage actual (INTEGER16).
+def _decode(tpdo1: Frame | None, tpdo2: Frame | None) -> dict[str, float]:
+    """Raw values of a TPDO pair, decoded from the bytes by their CiA 402 types:
+    TPDO1 = position actual (INTEGER32) + current actual (INTEGER16),
+    TPDO2 = velocity actual (INTEGER32) + voltage actual (INTEGER16)."""
+    out = {"position": np.nan, "current": np.nan, "velocity": np.nan}
+    if tpdo1 is not None:
+        out["position"] = int.from_bytes(tpdo1.data[0:4], "little", signed=True)
+        out["current"] = int.from_bytes(tpdo1.data[4:6], "little", signed=True)
+    if tpdo2 is not None:
+        out["velocity"] = int.from_bytes(tpdo2.data[0:4], "little", signed=True)
+    return out
 
-    The simulated drive samples at every SYNC and answers each one, in order, with one TPDO1
-    and one TPDO2, so the n-th TPDO1 after the first SYNC answers the n-th SYNC, even when a
-    starved drive answers after later SYNCs are already on the wire. NaN where the capture
-    ended before the answer.
+
+def _wire_answers(frames: list[Frame], count: int) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
+    """Two readings of which TPDOs answered each of the first ``count`` SYNCs of the capture.
+
+    By window: the TPDOs between SYNC k and SYNC k+1 (exact while the drive answers in time;
+    none if it has not, ambiguous if several). By order: the k-th TPDO1/TPDO2 after the first
+    SYNC (exact while the drive answers every SYNC once and in order, as the simulated drive
+    does unless its receive queue overflowed). Where both readings agree the answer is certain.
     """
-    pos, cur, vel = (np.full(count, np.nan) for _ in range(3))
     frames = cia301.base_frames(frames)
     first_sync = next(i for i, f in enumerate(frames) if f.arbitration_id == cia301.SYNC_ID)
-    tpdo1 = [f for f in frames[first_sync:] if f.arbitration_id == TPDO1][:count]
-    tpdo2 = [f for f in frames[first_sync:] if f.arbitration_id == TPDO2][:count]
-    for k, f in enumerate(tpdo1):
-        pos[k] = int.from_bytes(f.data[0:4], "little", signed=True)
-        cur[k] = int.from_bytes(f.data[4:6], "little", signed=True)
-    for k, f in enumerate(tpdo2):
-        vel[k] = int.from_bytes(f.data[0:4], "little", signed=True)
-    return {"position": pos, "current": cur, "velocity": vel}
+    after = frames[first_sync:]
+    tpdo1 = [f for f in after if f.arbitration_id == TPDO1]
+    tpdo2 = [f for f in after if f.arbitration_id == TPDO2]
+    by_order = [_decode(tpdo1[k] if k < len(tpdo1) else None, tpdo2[k] if k < len(tpdo2) else None)
+                for k in range(count)]
+    by_window = []
+    for window in _windows(after)[:count]:
+        ones = [f for f in window if f.arbitration_id == TPDO1]
+        twos = [f for f in window if f.arbitration_id == TPDO2]
+        by_window.append(_decode(ones[0] if len(ones) == 1 else None, twos[0] if len(twos) == 1 else None))
+    by_window += [_decode(None, None)] * (count - len(by_window))
+    return by_window, by_order
 
 
-def _assert_master_read_the_wire(samples: Samples, frames: list[Frame]) -> None:
-    """Every value the master recorded is the value of the TPDO that answered that SYNC."""
+def _assert_master_read_the_wire(samples: Samples, frames: list[Frame]) -> int:
+    """Every value the master recorded is the value of the TPDO that answered that SYNC.
+
+    Where the two readings of the wire (see :func:`_wire_answers`) agree, the recorded value
+    must be that one; where they differ (a late drive), it must be one of them. Returns the
+    number of such ambiguous windows; they may be at most half of the run.
+    """
     scaling = scaling_for(load_motor(PROFILE))
-    wire = _wire_samples(frames, samples.count)
+    by_window, by_order = _wire_answers(frames, samples.count)
     cols = samples.drives[0].columns
     got = {"position": np.round(cols["position_rad"] / scaling.rad_per_count),
            "current": np.round(cols["current_A"] / scaling.amp_per_unit),
            "velocity": np.round(cols["velocity_rad_s"] / scaling.velocity_unit_rad_s)}
+    ambiguous = set()
     for name, values in got.items():
+        a = np.array([w[name] for w in by_window])
+        b = np.array([o[name] for o in by_order])
+        certain = np.isfinite(a) & (a == b)
+        ambiguous |= set(np.flatnonzero(~certain).tolist())
         recorded = np.isfinite(values)
-        wrong = np.flatnonzero(recorded & (values != wire[name]))
+        wrong = np.flatnonzero(recorded & (values != a) & (values != b))
         assert wrong.size == 0, (
             f"{name}: the master recorded {values[wrong[:5]]} in windows {wrong[:5]} but the TPDOs "
-            f"answering those SYNCs on the wire carried {wire[name][wrong[:5]]} (misattributed PDO)")
+            f"answering those SYNCs on the wire carried {a[wrong[:5]]} (by window) or "
+            f"{b[wrong[:5]]} (by order): misattributed or misread PDO")
+    assert len(ambiguous) <= samples.count / 2, (
+        f"{len(ambiguous)} of {samples.count} windows cannot be attributed from the wire: the drive "
+        "answered late or missed SYNCs too often for this check to mean something")
+    return len(ambiguous)
 
 
 def test_setup_follows_cia301(master: Master) -> None:
@@ -248,6 +279,7 @@ def test_foreign_load_while_sampling(master: Master, time_mode: str) -> None:
             Cangen(CHANNEL, gap_ms=5, ident="r", extra=["-e", "-L", "r"]), \
             Cangen(CHANNEL, gap_ms=10, ident=FOREIGN_ID, extra=["-L", "8"]):
         samples = master.run(np.full((1, RUN_SAMPLES), TARGET_RAD_S), time_mode=time_mode)
+        time.sleep(LATE_ANSWER_S)  # let the capture hold a late drive's last answers
     master.stop_drives()
     frames = dump.frames
     sync_times = [f.timestamp_s for f in frames if f.arbitration_id == cia301.SYNC_ID
@@ -263,7 +295,8 @@ def test_foreign_load_while_sampling(master: Master, time_mode: str) -> None:
           f"{samples.count} windows, TPDOs lost {d.lost}, duplicates {d.duplicates}, late {d.late}; "
           f"aborted: {samples.aborted}")
     assert samples.count >= MIN_WINDOWS, f"only {samples.count} windows recorded: {samples.aborted}"
-    _assert_master_read_the_wire(samples, frames)
+    ambiguous = _assert_master_read_the_wire(samples, frames)
+    print(f"{time_mode}: {ambiguous} windows the wire cannot attribute for certain (late drive)")
     if time_mode == "lockstep":
         assert samples.aborted is None, samples.aborted
         assert (d.lost, d.duplicates, d.late) == (0, 0, 0), (

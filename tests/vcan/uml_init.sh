@@ -55,7 +55,9 @@ done
 [ $# -eq 0 ] && set -- -k "not virtual"
 # -vv (pyproject's addopts has -q) names each test as it starts, so a hang shows where;
 # --timeout ends a hung test with a traceback well before run.sh's limit ends the guest.
-opts="-p no:cacheprovider -vv --durations=8 --timeout=${VCAN_TEST_TIMEOUT_S:-120}"
+# --basetemp: the guest's temporary test files live in run.sh's work directory, apart from
+# the host's own pytest runs in /tmp/pytest-of-$USER.
+opts="-p no:cacheprovider -vv --durations=8 --timeout=${VCAN_TEST_TIMEOUT_S:-120} --basetemp=$VCAN_WORK/pytest"
 if [ "${VCAN_PYTEST:-1}" != 0 ]; then
     echo "uml_init: pytest $opts $targets$*"
     # shellcheck disable=SC2086  # word splitting of the option and target lists is intended
@@ -70,5 +72,12 @@ fi
 # is reported but does not fail the suite.
 if [ "${VCAN_BENCH:-1}" != 0 ]; then
     "$VCAN_PY" -m tests.vcan.bench || echo "uml_init: WARNING: the vcan benchmark failed (status $?)"
+    # The bus benchmark (owner "bus") on vcan0, shortened to fit the 5-minute budget.
+    if grep -q -- '--interface' tests/bench/bench_bus.py 2>/dev/null; then
+        echo "uml_init: python tests/bench/bench_bus.py --interface socketcan --channel vcan0 ${VCAN_BUS_BENCH_ARGS:=--duration 2 --realtime-s 2}"
+        # shellcheck disable=SC2086  # the arguments are split on purpose
+        "$VCAN_PY" tests/bench/bench_bus.py --interface socketcan --channel vcan0 $VCAN_BUS_BENCH_ARGS ||
+            echo "uml_init: WARNING: tests/bench/bench_bus.py failed (status $?)"
+    fi
 fi
 exit "$status"

@@ -1,0 +1,116 @@
+"""Heartbeat and EMCY consumer of the master (CiA 301 §7.2.8.3.2 and §7.2.7).
+
+Each drive produces a heartbeat every period (0x1017) carrying its NMT state; its
+boot-up message is a heartbeat with state 0. A heartbeat is late when the bus has carried
+frames stamped more than ``HEARTBEAT_CONSUMER_FACTOR`` periods after it (bus time: the
+stamps the interface puts on frames), so a reader thread that the OS holds up for a while
+raises no false alarm; when the bus falls silent altogether (the reader has handed on no
+frame for a consumer time), wall time decides, after ``SILENT_BUS_FACTOR`` consumer times.
+An EMCY with a non-zero error code is a fault.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+
+import can
+import canopen
+
+from stand.errors import BusError, DriveFault, HeartbeatLost
+
+log = logging.getLogger(__name__)
+
+#: A heartbeat older than this many periods means the node is lost.
+HEARTBEAT_CONSUMER_FACTOR = 1.5
+#: On a silent bus, a heartbeat is lost after this many consumer times of wall time.
+SILENT_BUS_FACTOR = 2.0
+NMT_STATE_NAMES = {0: "BOOT-UP", 4: "STOPPED", 5: "OPERATIONAL", 127: "PRE-OPERATIONAL"}
+
+
+class BusClock(can.Listener):
+    """The newest frame stamp the bus reader has handed on (bus time), s."""
+
+    def __init__(self) -> None:
+        self.newest = 0.0
+        self.last_frame_monotonic = time.monotonic()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.last_frame_monotonic = time.monotonic()
+        if msg.timestamp > self.newest:
+            self.newest = msg.timestamp
+
+
+class Supervisor:
+    """Watches the heartbeats, boot-ups and EMCYs of a set of nodes on ``network``."""
+
+    def __init__(self, network: canopen.Network) -> None:
+        self.network = network
+        self.clock = BusClock()
+        assert network.notifier is not None, "connect the network first"
+        network.notifier.add_listener(self.clock)
+        self.heartbeats: dict[int, tuple[float, int, float]] = {}  # monotonic, state, stamp
+        self.emcy: dict[int, list[tuple[float, int]]] = {}
+        self.booted: dict[int, threading.Event] = {}
+
+    def watch(self, node_id: int) -> None:
+        """Start watching ``node_id`` afresh (before resetting it)."""
+        self.booted[node_id] = threading.Event()
+        self.heartbeats.pop(node_id, None)
+        self.emcy[node_id] = []
+        self.network.subscribe(0x700 + node_id, self._on_heartbeat)
+        self.network.subscribe(0x80 + node_id, self._on_emcy)
+
+    def forget(self, node_id: int) -> None:
+        for cob_id, callback in ((0x700 + node_id, self._on_heartbeat), (0x80 + node_id, self._on_emcy)):
+            if callback in self.network.subscribers.get(cob_id, []):
+                self.network.unsubscribe(cob_id, callback)
+
+    def _on_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        node_id = can_id - 0x700
+        state = data[0] & 0x7F if data else 0
+        self.heartbeats[node_id] = (time.monotonic(), state, timestamp)
+        if state == 0 and node_id in self.booted:
+            self.booted[node_id].set()
+
+    def _on_emcy(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        node_id = can_id - 0x80
+        code = int.from_bytes(bytes(data[:2]), "little") if len(data) >= 2 else 0
+        if code:  # 0x0000 = error reset / no error
+            self.emcy.setdefault(node_id, []).append((time.monotonic(), code))
+            log.warning("node %d: EMCY 0x%04X", node_id, code)
+
+    def age_s(self, node_id: int) -> float | None:
+        """Wall time since the last heartbeat of ``node_id`` arrived, s (None: none yet)."""
+        beat = self.heartbeats.get(node_id)
+        return None if beat is None else time.monotonic() - beat[0]
+
+    def check(self, node_ids: list[int], period_s: float) -> BusError | None:
+        """A heartbeat loss or an EMCY among ``node_ids``, or None."""
+        limit = HEARTBEAT_CONSUMER_FACTOR * period_s
+        newest = self.clock.newest
+        now = time.monotonic()
+        silent = now - self.clock.last_frame_monotonic > limit
+        for node_id in node_ids:
+            beat = self.heartbeats.get(node_id)
+            if beat is None:
+                continue
+            received, _, stamp = beat
+            bus_age, wall_age = newest - stamp, now - received
+            if bus_age > limit or (silent and wall_age > SILENT_BUS_FACTOR * limit):
+                return HeartbeatLost(f"node {node_id}: no heartbeat for {max(bus_age, wall_age):.3f} s "
+                                     f"(period {period_s} s); every drive was quick-stopped")
+        for node_id in node_ids:
+            if self.emcy.get(node_id):
+                _, code = self.emcy[node_id][-1]
+                return DriveFault(f"node {node_id}: EMCY 0x{code:04X}; every drive was quick-stopped")
+        return None
+
+    def node_status(self, node_id: int) -> dict[str, object]:
+        beat = self.heartbeats.get(node_id)
+        emcy = self.emcy.get(node_id, [])
+        return {"nmt_state": NMT_STATE_NAMES.get(beat[1], str(beat[1])) if beat else "UNKNOWN",
+                "heartbeat_age_s": self.age_s(node_id),
+                "emcy_count": len(emcy),
+                "last_emcy": f"0x{emcy[-1][1]:04X}" if emcy else None}

@@ -1,0 +1,109 @@
+"""The pieces of the diagnosis: quantization, the noise-aware test, units, the command line,
+and the real EMPS records (CONTRACT §3)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stand.cli import main
+from stand.diagnose import diagnose
+from stand.diagnose.signals import quantization_step
+from stand.diagnose.significance import paired_improvement
+from stand.runfile import Run, check_columns, write_run
+from tests.conftest import REAL_DATA
+from tests.unit.test_diagnose_effects import MOTOR, stand_runs
+
+
+def test_quantization_step_is_the_encoder_count() -> None:
+    count = 2 * math.pi / 4000
+    rng = np.random.default_rng(3)
+    theta = np.floor(np.cumsum(rng.normal(0.0, 0.05, 5000)) / count) * count
+    np.testing.assert_allclose(quantization_step(theta), count, rtol=1e-6)
+    assert quantization_step(np.cumsum(rng.normal(0.0, 0.05, 5000))) == 0.0
+
+
+def test_paired_test_ignores_noise_and_sees_improvement() -> None:
+    rng = np.random.default_rng(4)
+    base = rng.chisquare(20, size=(2, 100))
+    same = base * np.exp(rng.normal(0.0, 0.05, size=base.shape))  # noise only
+    assert not paired_improvement(base, same).significant(7)
+    better = base * 0.6 * np.exp(rng.normal(0.0, 0.05, size=base.shape))
+    test = paired_improvement(base, better)
+    assert test.significant(7)
+    np.testing.assert_allclose(test.shrink, 1 - math.sqrt(0.6), atol=0.02)  # noise of 100 draws
+
+
+def _scaled(run: Run, position: float, current: float) -> Run:
+    return check_columns({"time_s": run.time_s, "current_A": current * run["current_A"],
+                          "position_rad": position * run["position_rad"]}, "single", run.source)
+
+
+def test_linear_units_give_the_same_verdict() -> None:
+    """A linear axis (position in m, "current" = force in N, Kt = 1) is diagnosed alike."""
+    train, holdout = stand_runs({"coulomb_friction": {"Tc": 0.004}})
+    metres, newtons = 1e-3, 100.0  # 1 mm per rad, 100 N per A
+    result = diagnose(_scaled(train, metres, newtons), _scaled(holdout, metres, newtons), kt=1.0)
+    assert result.verdict == "coulomb_friction"
+    params = next(e for e in result.effects if e.effect == "coulomb_friction").params
+    # Tc/Kt in the run's force unit: 0.004 N·m / Kt A, times 100 N/A; 15 % as in the rotary test.
+    np.testing.assert_allclose(params["Tc"], 0.004 / MOTOR.Kt * newtons, rtol=0.15)
+
+
+def test_command_line_json_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    train, holdout = stand_runs({"current_offset": {"i0": 0.05}})
+    paths = [write_run(tmp_path / f"{name}.csv", run.columns)
+             for name, run in (("train", train), ("holdout", holdout))]
+    code = main(["diagnose", str(paths[0]), "--holdout", str(paths[1]), "--json",
+                 "--plot", str(tmp_path / "plots")])
+    assert code == 0
+    result = json.loads(capsys.readouterr().out)
+    assert {"gap_percent", "where", "effects", "verdict"} <= set(result)
+    assert result["verdict"] == "current_offset"
+    assert result["where"]["regime"] in ("low_speed", "reversal", "high_speed", "acceleration",
+                                         "steady", "everywhere")
+    assert sorted(e["effect"] for e in result["effects"]) == sorted(
+        ["coulomb_friction", "stribeck_friction", "cogging", "current_offset", "delay",
+         "backlash", "torque_ripple"])
+    for e in result["effects"]:
+        np.testing.assert_allclose(e["shrink"], 1 - e["gap_percent"] / result["gap_percent"],
+                                   rtol=1e-9)
+    assert len(result["plots"]) == 4
+    assert all(Path(p).stat().st_size > 5000 for p in result["plots"])
+
+
+def test_command_line_refuses_bad_input(tmp_path: Path) -> None:
+    train, _ = stand_runs({})
+    path = write_run(tmp_path / "train.csv", train.columns)
+    assert main(["diagnose", str(path), "--holdout", str(tmp_path / "missing.csv")]) == 2
+    slower = {k: v[::2] for k, v in train.columns.items()}
+    other = write_run(tmp_path / "slower.csv", slower)
+    assert main(["diagnose", str(path), "--holdout", str(other)]) == 2
+
+
+EMPS = REAL_DATA / "emps"
+
+
+@pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason="EMPS data not present")
+def test_real_emps_axis_has_coulomb_friction() -> None:
+    """EMPS (closed loop, m and N): TRAIN the estimation record, HOLDOUT the pulses one.
+
+    The authors' reference (IDIM-LS): Fc = 20.39 N, offset −3.16 N.
+    """
+    from scipy.io import loadmat
+
+    def load(name: str) -> Run:
+        data = loadmat(EMPS / f"{name}.mat")
+        force = float(data["gtau"][0, 0]) * data["vir"].ravel()
+        return check_columns({"time_s": data["t"].ravel(), "current_A": force,
+                              "position_rad": data["qm"].ravel()}, "single", name)
+
+    result = diagnose(load("DATA_EMPS"), load("DATA_EMPS_PULSES"), kt=1.0)
+    assert result.verdict.split("+")[0] == "coulomb_friction", result.message
+    params = next(e for e in result.effects if e.effect == "coulomb_friction").params
+    np.testing.assert_allclose(params["Tc"], 20.39, rtol=0.1)  # 10 %: other model, filter
+    assert result.gap_percent > 2 * result.verdict_gap_percent
