@@ -61,6 +61,7 @@ def summarize(result: dict[str, Any]) -> str:
                            for k, v in e["params"].items())
         lines.append(f"{e['effect']:<20} {e['gap_percent']:6.2f}  {e['shrink']:7.2f}  "
                      f"{'yes' if e['significant'] else 'no':<11}  {params}")
+    lines += [f"note: {note}" for note in result.get("notes", [])]
     if result.get("plots"):
         lines.append("plots: " + ", ".join(result["plots"]))
     return "\n".join(lines)

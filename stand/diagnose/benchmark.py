@@ -37,6 +37,9 @@ NONE_SHARE = 0.2
 PAIR_SHARE = 0.15
 #: Relative effect strength range (of the run's typical drive torque): barely visible to strong.
 STRENGTH_RANGE = (0.03, 0.3)
+#: Highest cogging / torque-ripple order drawn, cycles per revolution (slot and
+#: commutator orders of small brushed motors: 3 to 12 slots, two per slot).
+MAX_ORDER_DRAWN = 24
 #: Encoder resolutions drawn, lines per revolution (4x quadrature).
 ENCODER_LINES = (500, 1000, 1024, 2000, 2500, 4096, 5000)
 
@@ -109,7 +112,7 @@ def draw_case(index: int, seed: int) -> Case:
 def _draw_effect(name: str, rng: np.random.Generator, torque_ref: float, current_ref: float,
                  omega_ref: float, J: float, lines: int, dt: float) -> dict[str, float]:
     strength = _log_uniform(rng, *STRENGTH_RANGE)
-    max_order = max(2, min(40, 4 * lines // 16))
+    max_order = max(2, min(MAX_ORDER_DRAWN, 4 * lines // 16))
     if name == "coulomb_friction":
         return {"Tc": strength * torque_ref}
     if name == "stribeck_friction":

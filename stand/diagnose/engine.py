@@ -200,7 +200,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         anchoring={"method": "re-anchored to the filtered measured state every horizon_s",
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
-        noise_floor_percent=floor, message=message), traces
+        noise_floor_percent=floor, message=message, notes=_notes(tr)), traces
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
@@ -233,6 +233,21 @@ def _nominal_spec(train: Signals, horizon_s: float, spring: bool) -> ModelSpec:
     on_train = _Bench(train, train, horizon_s)
     specs = [ModelSpec(input_weight=w, spring=spring) for w in INPUT_WEIGHTS]
     return min(specs, key=lambda spec: on_train.score(spec).gap)
+
+
+#: Share of moving samples below which a direction of rotation counts as absent.
+ONE_DIRECTION_SHARE = 0.01
+
+
+def _notes(train: Signals) -> list[str]:
+    """Limits of what TRAIN can resolve, in words."""
+    notes = []
+    moving = train.omega_f[np.abs(train.omega_f) > 0]
+    if moving.size and min(np.mean(moving > 0), np.mean(moving < 0)) < ONE_DIRECTION_SHARE:
+        notes.append("the shaft turns one way only on TRAIN: coulomb_friction and "
+                     "current_offset are the same constant torque there and cannot be told "
+                     "apart (record a run that reverses)")
+    return notes
 
 
 def _noise_floor(sig: Signals, scale: float) -> float:

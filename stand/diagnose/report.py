@@ -93,6 +93,9 @@ class Diagnosis:
         Gap that encoder quantization alone gives (velocity difference noise), %.
     message : str
         One line for people.
+    notes : list of str
+        What the data cannot tell apart or resolve (e.g. Coulomb friction from a current
+        offset when the shaft never reverses).
     """
 
     gap_percent: float
@@ -105,3 +108,4 @@ class Diagnosis:
     anchoring: dict[str, float | int | str]
     noise_floor_percent: float
     message: str = ""
+    notes: list[str] = field(default_factory=list)

@@ -106,4 +106,5 @@ def test_real_emps_axis_has_coulomb_friction() -> None:
     assert result.verdict.split("+")[0] == "coulomb_friction", result.message
     params = next(e for e in result.effects if e.effect == "coulomb_friction").params
     np.testing.assert_allclose(params["Tc"], 20.39, rtol=0.1)  # 10 %: other model, filter
+    assert "current_offset" in result.verdict  # the authors: offset −3.16 N
     assert result.gap_percent > 2 * result.verdict_gap_percent

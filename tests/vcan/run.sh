@@ -5,11 +5,12 @@
 #
 # Boots /usr/bin/linux.uml with the host's own file system as root (hostfs), where
 # tests/vcan/uml_init.sh loads the CAN modules, creates vcan0 and runs
-#   pytest tests/vcan tests/integration/test_bus_*.py [PYTEST ARGS]
-# (without PYTEST ARGS: -k "not virtual", the bus cases' virtual variants run on the host;
-# with an argument naming a test path, only that path), then tests/vcan/bench.py (frames/s,
-# SYNC jitter) and tests/bench/bench_bus.py on vcan0, and writes the exit status to a file this script reads. The guest's console
-# (the test output) is this script's stdout; this script's own messages go to stderr.
+#   pytest tests/vcan tests/integration/test_bus_*.py -k "not virtual" [PYTEST ARGS]
+# (an argument naming a test path replaces the default paths and drops the -k, as does a
+# -k of the caller's; the bus cases' virtual variants run on the host), then
+# tests/vcan/bench.py (frames/s, SYNC jitter) and tests/bench/bench_bus.py on vcan0, and
+# writes the tests' exit status to a file this script reads. The guest's console (the test
+# output) is this script's stdout; this script's own messages go to stderr.
 #
 # Exit status: the suite's status; 1 when UML is missing, fails to boot, exceeds its time
 # limit or leaves no status file.

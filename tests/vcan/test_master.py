@@ -49,7 +49,7 @@ PDO_TIMEOUT_S = 0.5
 SDO_TIMEOUT_S = 1.0
 BOOT_TIMEOUT_S = 5.0
 #: Time the capture goes on after a realtime run, for answers of a late drive, s.
-LATE_ANSWER_S = 0.3
+LATE_ANSWER_S = 1.0
 #: Fewest SYNC windows a realtime run under load must record for its check to mean something.
 MIN_WINDOWS = 50
 #: Foreign 11-bit identifier used for load: in CiA 301's reserved range 0x780..0x7E3, so no
@@ -104,59 +104,48 @@ def _decode(tpdo1: Frame | None, tpdo2: Frame | None) -> dict[str, float]:
     return out
 
 
-def _wire_answers(frames: list[Frame], count: int) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
-    """Two readings of which TPDOs answered each of the first ``count`` SYNCs of the capture.
+def _wire_answers(frames: list[Frame], count: int) -> list[dict[str, float]] | None:
+    """The TPDO values that answered each of the first ``count`` SYNCs of the capture.
 
-    By window: the TPDOs between SYNC k and SYNC k+1 (exact while the drive answers in time;
-    none if it has not, ambiguous if several). By order: the k-th TPDO1/TPDO2 after the first
-    SYNC (exact while the drive answers every SYNC once and in order, as the simulated drive
-    does unless its receive queue overflowed). Where both readings agree the answer is certain.
+    The simulated drive answers every SYNC it receives once and in order with one TPDO1 and
+    one TPDO2, so when the capture holds as many answers as SYNCs the k-th answer after the
+    first SYNC is the answer to SYNC k, however late the drive sent it. With fewer answers
+    the drive missed a SYNC somewhere (its receive queue overflowed) and no reading of the
+    frames alone can say which SYNC a later answer belongs to: None then.
     """
     frames = cia301.base_frames(frames)
     first_sync = next(i for i, f in enumerate(frames) if f.arbitration_id == cia301.SYNC_ID)
     after = frames[first_sync:]
+    syncs = sum(1 for f in after if f.arbitration_id == cia301.SYNC_ID)
     tpdo1 = [f for f in after if f.arbitration_id == TPDO1]
     tpdo2 = [f for f in after if f.arbitration_id == TPDO2]
-    by_order = [_decode(tpdo1[k] if k < len(tpdo1) else None, tpdo2[k] if k < len(tpdo2) else None)
-                for k in range(count)]
-    by_window = []
-    for window in _windows(after)[:count]:
-        ones = [f for f in window if f.arbitration_id == TPDO1]
-        twos = [f for f in window if f.arbitration_id == TPDO2]
-        by_window.append(_decode(ones[0] if len(ones) == 1 else None, twos[0] if len(twos) == 1 else None))
-    by_window += [_decode(None, None)] * (count - len(by_window))
-    return by_window, by_order
+    if not len(tpdo1) == len(tpdo2) == syncs:
+        return None
+    return [_decode(tpdo1[k], tpdo2[k]) for k in range(count)]
 
 
-def _assert_master_read_the_wire(samples: Samples, frames: list[Frame]) -> int:
+def _assert_master_read_the_wire(samples: Samples, frames: list[Frame], realtime: bool = False) -> None:
     """Every value the master recorded is the value of the TPDO that answered that SYNC.
 
-    Where the two readings of the wire (see :func:`_wire_answers`) agree, the recorded value
-    must be that one; where they differ (a late drive), it must be one of them. Returns the
-    number of such ambiguous windows; they may be at most half of the run.
+    When the drive missed a SYNC (see :func:`_wire_answers`) a lockstep test fails (every
+    SYNC must be answered) and a realtime test is skipped with the reason.
     """
     scaling = scaling_for(load_motor(PROFILE))
-    by_window, by_order = _wire_answers(frames, samples.count)
+    answers = _wire_answers(frames, samples.count)
+    assert answers is not None or realtime, "the drive did not answer every SYNC of a lockstep run"
+    if answers is None:
+        pytest.skip("the drive process missed a SYNC on this loaded one-CPU guest (fewer answers "
+                    "than SYNCs on the wire), so the frames cannot say which SYNC each answer is for")
     cols = samples.drives[0].columns
     got = {"position": np.round(cols["position_rad"] / scaling.rad_per_count),
            "current": np.round(cols["current_A"] / scaling.amp_per_unit),
            "velocity": np.round(cols["velocity_rad_s"] / scaling.velocity_unit_rad_s)}
-    ambiguous = set()
     for name, values in got.items():
-        a = np.array([w[name] for w in by_window])
-        b = np.array([o[name] for o in by_order])
-        certain = np.isfinite(a) & (a == b)
-        ambiguous |= set(np.flatnonzero(~certain).tolist())
-        recorded = np.isfinite(values)
-        wrong = np.flatnonzero(recorded & (values != a) & (values != b))
+        wire = np.array([a[name] for a in answers])
+        wrong = np.flatnonzero(np.isfinite(values) & (values != wire))
         assert wrong.size == 0, (
             f"{name}: the master recorded {values[wrong[:5]]} in windows {wrong[:5]} but the TPDOs "
-            f"answering those SYNCs on the wire carried {a[wrong[:5]]} (by window) or "
-            f"{b[wrong[:5]]} (by order): misattributed or misread PDO")
-    assert len(ambiguous) <= samples.count / 2, (
-        f"{len(ambiguous)} of {samples.count} windows cannot be attributed from the wire: the drive "
-        "answered late or missed SYNCs too often for this check to mean something")
-    return len(ambiguous)
+            f"answering those SYNCs on the wire carried {wire[wrong[:5]]} (misattributed PDO)")
 
 
 def test_setup_follows_cia301(master: Master) -> None:
@@ -217,14 +206,12 @@ def test_lockstep_run_on_the_wire(master: Master) -> None:
     with Candump(CHANNEL) as dump:
         _setup(master)
         samples = master.run(np.full((1, RUN_SAMPLES), TARGET_RAD_S))
-        master.stop_drives()
+    master.stop_drives()  # its SYNCs: test_stop_syncs_carry_the_counter
     assert samples.complete, samples.aborted or samples.lost
     assert samples.drives[0].duplicates == 0 and samples.drives[0].late == 0
     frames = dump.frames
     overflow = _sync_overflow(frames)
-    # The run's SYNCs (the stop that follows is checked in test_stop_syncs_carry_the_counter).
-    run_end = [f for f in frames if f.arbitration_id == cia301.SYNC_ID][RUN_SAMPLES - 1].timestamp_s
-    counters = cia301.check_sync([f for f in frames if f.timestamp_s <= run_end], overflow)
+    counters = cia301.check_sync(frames, overflow)
     assert len(counters) == RUN_SAMPLES
     if overflow:
         assert list(samples.sync_counter) == counters
@@ -295,8 +282,9 @@ def test_foreign_load_while_sampling(master: Master, time_mode: str) -> None:
           f"{samples.count} windows, TPDOs lost {d.lost}, duplicates {d.duplicates}, late {d.late}; "
           f"aborted: {samples.aborted}")
     assert samples.count >= MIN_WINDOWS, f"only {samples.count} windows recorded: {samples.aborted}"
-    ambiguous = _assert_master_read_the_wire(samples, frames)
-    print(f"{time_mode}: {ambiguous} windows the wire cannot attribute for certain (late drive)")
+    answers = sum(1 for f in cia301.base_frames(frames) if f.arbitration_id == TPDO1)
+    print(f"{time_mode}: {len(sync_times)} SYNCs and {answers} TPDO1 answers on the wire")
+    _assert_master_read_the_wire(samples, frames, realtime=time_mode == "realtime")
     if time_mode == "lockstep":
         assert samples.aborted is None, samples.aborted
         assert (d.lost, d.duplicates, d.late) == (0, 0, 0), (

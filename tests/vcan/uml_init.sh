@@ -46,13 +46,14 @@ cd "$VCAN_REPO" || fail "cannot cd to $VCAN_REPO"
 suite_start=$(date +%s)
 # The default targets, unless an argument names a test path (tests/vcan/run.sh FILE -k X).
 targets="tests/vcan $(ls tests/integration/test_bus_*.py 2>/dev/null | tr '\n' ' ')"
+own_k=0
 for arg in "$@"; do
-    case "$arg" in -*) ;; *) [ -e "${arg%%::*}" ] && targets="" ;; esac
+    case "$arg" in -k*) own_k=1 ;; -*) ;; *) [ -e "${arg%%::*}" ] && targets="" ;; esac
 done
-# Without arguments: the bus cases on socketcan only. Their [virtual] variants already ran
-# on the host (tests/run.sh); skipping them here keeps the suite under 5 minutes on the
-# guest's one CPU.
-[ $# -eq 0 ] && set -- -k "not virtual"
+# With the default targets and no -k of the caller's: the bus cases on socketcan only.
+# Their [virtual] variants already ran on the host (tests/run.sh); skipping them here keeps
+# the suite under 5 minutes on the guest's one CPU.
+[ -n "$targets" ] && [ "$own_k" = 0 ] && set -- -k "not virtual" "$@"
 # -vv (pyproject's addopts has -q) names each test as it starts, so a hang shows where;
 # --timeout ends a hung test with a traceback well before run.sh's limit ends the guest.
 # --basetemp: the guest's temporary test files live in run.sh's work directory, apart from
