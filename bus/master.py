@@ -44,8 +44,9 @@ HEARTBEAT_PERIOD_S = 0.1
 #: Time a drive may take to send its boot-up message after NMT reset node, s.
 BOOT_TIMEOUT_S = 2.0
 #: Lockstep: time the TPDOs of one SYNC may take before they count as lost, s. Generous:
-#: lockstep cannot tell a late TPDO from the next one, so a window must never close early.
-PDO_TIMEOUT_S = 0.5
+#: lockstep cannot tell a late TPDO from the next one, so a window must never close early
+#: (a one-CPU User-Mode Linux guest on a loaded host stalls a reader for over 0.5 s).
+PDO_TIMEOUT_S = 2.0
 #: Longest single wait, so heartbeats and stop requests are checked while waiting, s.
 POLL_S = 0.01
 #: Stand time the drives spend in quick stop after a run before they are disabled, s.
@@ -201,10 +202,10 @@ class Master:
         self._quick_stop.set()
         frames = [(d.rpdo_cob_id, d.rpdo_data(cia402.CW_QUICK_STOP, 0.0))
                   for d in self.drives if d.rpdo is not None]
+        if self.quick_stop_wall_s is None:
+            self.quick_stop_wall_s = time.monotonic()  # when the first quick stop left
         for cob_id, data in frames:
             self.network.send_message(cob_id, data)
-        if self.quick_stop_wall_s is None:
-            self.quick_stop_wall_s = time.monotonic()
         for drive in self.drives:
             drive.controlword = cia402.CW_QUICK_STOP
         if not self.running:  # also advance simulated drives so the quick stop acts

@@ -29,6 +29,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     return summary
 
 
+def _percent(value: float | None) -> str:
+    return "n/a" if value is None else f"{100 * value:.1f} %"
+
+
 def summarize(result: dict[str, Any]) -> str:
     from stand.diagnose.benchmark import confusion_table
 
@@ -36,10 +40,10 @@ def summarize(result: dict[str, Any]) -> str:
     return "\n".join([
         confusion_table(result),
         f"cases {result['cases']} (seed {result['seed']})",
-        f"top-1 accuracy {100 * result['top1_accuracy']:.1f} % "
-        f"(exact set {100 * result['exact_accuracy']:.1f} %)",
-        f"false alarms on none {100 * result['false_alarm_rate']:.1f} % of "
+        f"top-1 accuracy {_percent(result['top1_accuracy'])} "
+        f"(exact set {_percent(result['exact_accuracy'])})",
+        f"false alarms on none {_percent(result['false_alarm_rate'])} of "
         f"{result['none_cases']} effect-free cases",
-        f"median holdout shrink of the true effect {100 * result['median_true_shrink']:.1f} %",
+        f"median holdout shrink of the true effect {_percent(result['median_true_shrink'])}",
         f"diagnose 20 s at 1 kHz: {timing['seconds']:.2f} s",
     ])

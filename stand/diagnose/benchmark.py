@@ -180,8 +180,7 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     labels = ["none", *EFFECTS]
     confusion: dict[str, Counter[str]] = {label: Counter() for label in labels}
     for row in rows:
-        confusion[row["truth"][0] if len(row["truth"]) == 1 else "+".join(row["truth"])
-                  if False else row["truth"][0]][row["verdict"].split("+")[0]] += 1
+        confusion[row["truth"][0]][row["verdict"].split("+")[0]] += 1
     none_rows = [r for r in rows if r["truth"] == ["none"]]
     effect_rows = [r for r in rows if r["truth"] != ["none"]]
     shrinks = [r["true_shrink"] for r in effect_rows if r["true_shrink"] is not None]
@@ -202,7 +201,8 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def confusion_table(summary: dict[str, Any]) -> str:
-    """The confusion matrix as text (rows: truth, first effect; columns: verdict, first)."""
+    """The confusion matrix as text (rows: the first true effect in vocabulary order;
+    columns: the first effect of the verdict)."""
     labels = summary["labels"]
     short = {name: name.replace("_friction", "").replace("current_", "")[:8] for name in labels}
     head = "truth \\ verdict".ljust(18) + "".join(short[c].rjust(9) for c in labels)

@@ -18,6 +18,10 @@ import time
 from stand.diagnose.benchmark import confusion_table, run_benchmark, summarize_cases, timing_case
 
 
+def _percent(value: float | None) -> str:
+    return "n/a" if value is None else f"{100 * value:.1f} %"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=200)
@@ -36,12 +40,12 @@ def main(argv: list[str] | None = None) -> int:
                 out.write(json.dumps(row) + "\n")
     print(confusion_table(summary))
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
-    print(f"top-1 accuracy {100 * summary['top1_accuracy']:.1f} %  "
-          f"(exact set {100 * summary['exact_accuracy']:.1f} %)")
-    print(f"false alarms on none {100 * summary['false_alarm_rate']:.1f} % of "
+    print(f"top-1 accuracy {_percent(summary['top1_accuracy'])}  "
+          f"(exact set {_percent(summary['exact_accuracy'])})")
+    print(f"false alarms on none {_percent(summary['false_alarm_rate'])} of "
           f"{summary['none_cases']} effect-free cases; missed effects "
-          f"{100 * summary['missed_rate']:.1f} %")
-    print(f"median holdout shrink of the true effect {100 * summary['median_true_shrink']:.1f} %")
+          f"{_percent(summary['missed_rate'])}")
+    print(f"median holdout shrink of the true effect {_percent(summary['median_true_shrink'])}")
     print(f"diagnose {timing['duration_s']:.0f} s at {timing['rate_hz']:.0f} Hz: "
           f"{timing['seconds']:.2f} s (read + diagnose)")
     return 0

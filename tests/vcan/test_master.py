@@ -48,6 +48,9 @@ PDO_TIMEOUT_S = 0.5
 #: drive process that shares the guest's one CPU with candump and cangen.
 SDO_TIMEOUT_S = 1.0
 BOOT_TIMEOUT_S = 5.0
+#: Gap of the 29-bit foreign load, ms (the 11-bit load has twice the gap): 250-300 frames/s
+#: in all in lockstep, about 140 in realtime, where the guest's one CPU also runs the clock.
+FOREIGN_GAP_MS = {"lockstep": 5.0, "realtime": 10.0}
 #: Time the capture goes on after a realtime run, for answers of a late drive, s.
 LATE_ANSWER_S = 1.0
 #: Fewest SYNC windows a realtime run under load must record for its check to mean something.
@@ -91,7 +94,7 @@ def _windows(frames: list[Frame]) -> list[list[Frame]]:
     return out
 
 
-def _decode(tpdo1: Frame | None, tpdo2: Frame | None) -> dict[str, float]:
+def _values(tpdo1: Frame | None, tpdo2: Frame | None) -> dict[str, float]:
     """Raw values of a TPDO pair, decoded from the bytes by their CiA 402 types:
     TPDO1 = position actual (INTEGER32) + current actual (INTEGER16),
     TPDO2 = velocity actual (INTEGER32) + voltage actual (INTEGER16)."""
@@ -104,48 +107,72 @@ def _decode(tpdo1: Frame | None, tpdo2: Frame | None) -> dict[str, float]:
     return out
 
 
-def _wire_answers(frames: list[Frame], count: int) -> list[dict[str, float]] | None:
-    """The TPDO values that answered each of the first ``count`` SYNCs of the capture.
+Candidates = list[dict[str, set[float]]]
+
+
+def _wire_answers(frames: list[Frame], count: int) -> Candidates | None:
+    """For each of the first ``count`` SYNCs of the capture, the values that may have answered it.
 
     The simulated drive answers every SYNC it receives once and in order with one TPDO1 and
     one TPDO2, so when the capture holds as many answers as SYNCs the k-th answer after the
-    first SYNC is the answer to SYNC k, however late the drive sent it. With fewer answers
-    the drive missed a SYNC somewhere (its receive queue overflowed) and no reading of the
-    frames alone can say which SYNC a later answer belongs to: None then.
+    first SYNC is the answer to SYNC k, however late it came: one candidate each.
+
+    With fewer answers, the drive discarded late ones because the master set a synchronous
+    window (0x1007, CiA 301 §7.5.2.7) shorter than the shortest SYNC interval; an answer then
+    belongs to the SYNC right before it, one candidate, unless an answer sent just inside
+    the window crossed the next SYNC on the wire (no or two answers in a neighbouring
+    window): then the answers of windows k and k+1 are all candidates. Without a window
+    and with fewer answers the frames cannot say it: None.
     """
+    transfers = cia301.sdo_transfers(frames, NODE)
     frames = cia301.base_frames(frames)
     first_sync = next(i for i, f in enumerate(frames) if f.arbitration_id == cia301.SYNC_ID)
     after = frames[first_sync:]
     syncs = sum(1 for f in after if f.arbitration_id == cia301.SYNC_ID)
     tpdo1 = [f for f in after if f.arbitration_id == TPDO1]
     tpdo2 = [f for f in after if f.arbitration_id == TPDO2]
-    if not len(tpdo1) == len(tpdo2) == syncs:
+    if len(tpdo1) == len(tpdo2) == syncs:
+        return [{name: {v} for name, v in _values(tpdo1[k], tpdo2[k]).items()} for k in range(count)]
+    windows_us = [t.value for t in transfers if t.write and (t.index, t.subindex) == (0x1007, 0)]
+    if not windows_us or not windows_us[-1]:
         return None
-    return [_decode(tpdo1[k], tpdo2[k]) for k in range(count)]
+    answers = [[_values(f, None) if f.arbitration_id == TPDO1 else _values(None, f)
+                for f in window if f.arbitration_id in (TPDO1, TPDO2)] for window in _windows(after)]
+    answers += [[]] * (count + 1 - len(answers))
+    out: Candidates = []
+    for k in range(count):
+        here, there = answers[k], answers[k + 1]
+        clean = len(here) == 2 and len(there) in (0, 2) if k + 1 == count else len(here) == len(there) == 2
+        pool = here if clean else here + there
+        out.append({name: {v[name] for v in pool if np.isfinite(v[name])}
+                    for name in ("position", "current", "velocity")})
+    return out
 
 
-def _assert_master_read_the_wire(samples: Samples, frames: list[Frame], realtime: bool = False) -> None:
-    """Every value the master recorded is the value of the TPDO that answered that SYNC.
+def _assert_master_read_the_wire(samples: Samples, frames: list[Frame], realtime: bool = False) -> int:
+    """Every value the master recorded is a value that answered that SYNC on the wire.
 
-    When the drive missed a SYNC (see :func:`_wire_answers`) a lockstep test fails (every
-    SYNC must be answered) and a realtime test is skipped with the reason.
+    A lockstep run must have every SYNC answered (one candidate per window). When a realtime
+    run's answers cannot be attributed from the frames (see :func:`_wire_answers`) the test
+    is skipped with the reason. Returns the number of windows with more than one candidate.
     """
     scaling = scaling_for(load_motor(PROFILE))
-    answers = _wire_answers(frames, samples.count)
-    assert answers is not None or realtime, "the drive did not answer every SYNC of a lockstep run"
-    if answers is None:
-        pytest.skip("the drive process missed a SYNC on this loaded one-CPU guest (fewer answers "
-                    "than SYNCs on the wire), so the frames cannot say which SYNC each answer is for")
+    candidates = _wire_answers(frames, samples.count)
+    assert candidates is not None or realtime, "the drive did not answer every SYNC of a lockstep run"
+    if candidates is None:
+        pytest.skip("fewer answers than SYNCs on the wire and no synchronous window (0x1007) "
+                    "written, so the frames cannot say which SYNC each answer is for")
     cols = samples.drives[0].columns
     got = {"position": np.round(cols["position_rad"] / scaling.rad_per_count),
            "current": np.round(cols["current_A"] / scaling.amp_per_unit),
            "velocity": np.round(cols["velocity_rad_s"] / scaling.velocity_unit_rad_s)}
     for name, values in got.items():
-        wire = np.array([a[name] for a in answers])
-        wrong = np.flatnonzero(np.isfinite(values) & (values != wire))
-        assert wrong.size == 0, (
-            f"{name}: the master recorded {values[wrong[:5]]} in windows {wrong[:5]} but the TPDOs "
-            f"answering those SYNCs on the wire carried {wire[wrong[:5]]} (misattributed PDO)")
+        wrong = [k for k, v in enumerate(values) if np.isfinite(v) and v not in candidates[k][name]]
+        assert not wrong, (
+            f"{name}: the master recorded {[values[k] for k in wrong[:5]]} in windows {wrong[:5]} but "
+            f"the TPDOs answering those SYNCs on the wire carried "
+            f"{[sorted(candidates[k][name]) for k in wrong[:5]]} (misattributed PDO)")
+    return sum(1 for c in candidates if len(c["position"]) > 1)
 
 
 def test_setup_follows_cia301(master: Master) -> None:
@@ -262,9 +289,10 @@ def test_foreign_load_while_sampling(master: Master, time_mode: str) -> None:
     too late; but no TPDO may ever be recorded as another window's value.
     """
     _setup(master)
+    gap_ms = FOREIGN_GAP_MS[time_mode]
     with Candump(CHANNEL) as dump, \
-            Cangen(CHANNEL, gap_ms=5, ident="r", extra=["-e", "-L", "r"]), \
-            Cangen(CHANNEL, gap_ms=10, ident=FOREIGN_ID, extra=["-L", "8"]):
+            Cangen(CHANNEL, gap_ms=gap_ms, ident="r", extra=["-e", "-L", "r"]), \
+            Cangen(CHANNEL, gap_ms=2 * gap_ms, ident=FOREIGN_ID, extra=["-L", "8"]):
         samples = master.run(np.full((1, RUN_SAMPLES), TARGET_RAD_S), time_mode=time_mode)
         time.sleep(LATE_ANSWER_S)  # let the capture hold a late drive's last answers
     master.stop_drives()
@@ -284,7 +312,8 @@ def test_foreign_load_while_sampling(master: Master, time_mode: str) -> None:
     assert samples.count >= MIN_WINDOWS, f"only {samples.count} windows recorded: {samples.aborted}"
     answers = sum(1 for f in cia301.base_frames(frames) if f.arbitration_id == TPDO1)
     print(f"{time_mode}: {len(sync_times)} SYNCs and {answers} TPDO1 answers on the wire")
-    _assert_master_read_the_wire(samples, frames, realtime=time_mode == "realtime")
+    ambiguous = _assert_master_read_the_wire(samples, frames, realtime=time_mode == "realtime")
+    print(f"{time_mode}: {ambiguous} windows with an answer that crossed the next SYNC")
     if time_mode == "lockstep":
         assert samples.aborted is None, samples.aborted
         assert (d.lost, d.duplicates, d.late) == (0, 0, 0), (
