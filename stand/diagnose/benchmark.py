@@ -23,6 +23,7 @@ import numpy as np
 
 from stand.diagnose.candidates import EFFECTS
 from stand.diagnose.engine import diagnose
+from stand.diagnose.oracle import visibility
 from stand.excitation import excitation
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
@@ -160,6 +161,8 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[
         start = time.perf_counter()
         result = diagnose(train, holdout)
         elapsed = time.perf_counter() - start
+        oracle = (visibility(train, holdout, case.motor, case.effects)
+                  if case.effects else None)
     predicted = result.verdict.split("+")
     gaps = {e.effect: e for e in result.effects}
     true_shrink = max((gaps[t].shrink for t in case.truth if t in gaps), default=None)
@@ -168,7 +171,10 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[
         "top1": predicted[0] in case.truth,
         "exact": sorted(predicted) == sorted(case.truth),
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
-        "true_shrink": true_shrink, "seconds": elapsed, "samples": len(holdout),
+        "true_shrink": true_shrink,
+        "visible": oracle.visible if oracle else True,
+        "oracle_shrink": oracle.shrink if oracle else None,
+        "oracle_p": oracle.p_value if oracle else None, "seconds": elapsed, "samples": len(holdout),
         "mode": case.mode, "kind": case.kind, "dt_s": case.dt_s, "effects": case.effects,
         "scores": {e.effect: {"shrink": e.shrink, "p": e.p_value, "consistent": e.consistent,
                               "significant": e.significant} for e in result.effects},
@@ -184,8 +190,12 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     none_rows = [r for r in rows if r["truth"] == ["none"]]
     effect_rows = [r for r in rows if r["truth"] != ["none"]]
     shrinks = [r["true_shrink"] for r in effect_rows if r["true_shrink"] is not None]
+    visible = [r for r in rows if r.get("visible", True)]
     return {
         "cases": len(rows),
+        "visible_cases": len(visible),
+        "visible_top1_accuracy": (float(np.mean([r["top1"] for r in visible]))
+                                  if visible else None),
         "top1_accuracy": float(np.mean([r["top1"] for r in rows])) if rows else None,
         "exact_accuracy": float(np.mean([r["exact"] for r in rows])) if rows else None,
         "none_cases": len(none_rows),

@@ -166,12 +166,19 @@ def _assert_master_read_the_wire(samples: Samples, frames: list[Frame], realtime
     got = {"position": np.round(cols["position_rad"] / scaling.rad_per_count),
            "current": np.round(cols["current_A"] / scaling.amp_per_unit),
            "velocity": np.round(cols["velocity_rad_s"] / scaling.velocity_unit_rad_s)}
+    windows = _windows(frames)
     for name, values in got.items():
         wrong = [k for k, v in enumerate(values) if np.isfinite(v) and v not in candidates[k][name]]
+        if wrong:  # the frames around the first wrong window, for whoever fixes it
+            near = {j: [f"{f.arbitration_id:03X}#{f.data.hex()}" for f in windows[j]
+                        if f.arbitration_id in (TPDO1, TPDO2)]
+                    for j in range(max(0, wrong[0] - 2), min(len(windows), wrong[0] + 3))}
+            recorded = {j: values[j] for j in near if j < len(values)}
         assert not wrong, (
             f"{name}: the master recorded {[values[k] for k in wrong[:5]]} in windows {wrong[:5]} but "
             f"the TPDOs answering those SYNCs on the wire carried "
-            f"{[sorted(candidates[k][name]) for k in wrong[:5]]} (misattributed PDO)")
+            f"{[sorted(candidates[k][name]) for k in wrong[:5]]} (misattributed PDO); TPDOs after "
+            f"each SYNC near the first: {near}; the master's {name} there: {recorded}")
     return sum(1 for c in candidates if len(c["position"]) > 1)
 
 
