@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from stand.errors import InputError, RunFileError
-from stand.runfile import COLUMNS, Run, RunKind, check_columns
+from stand.runfile import COLUMNS, Run, RunKind, check_columns, read_text
 
 #: The 2-D variable that holds a whole CSV table.
 TABLE_VARIABLE = "data"
@@ -290,12 +290,7 @@ def _mat_variables(path: Path) -> dict[str, np.ndarray]:
 
 
 def _csv_variables(path: Path) -> dict[str, np.ndarray]:
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from exc
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
+    text = read_text(path)
     lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise InputError(f"{path}: no data rows")

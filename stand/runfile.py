@@ -186,16 +186,20 @@ def _parse_rows(reader: Iterator[list[str]], kind: RunKind, source: str) -> Run:
     return check_columns({k: np.array(v) for k, v in values.items()}, kind, source)
 
 
+def read_text(path: Path) -> str:
+    """The UTF-8 text of a CSV file; RunFileError naming the file when it can't be read."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise RunFileError(f"{path}: cannot read: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise RunFileError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
+
+
 def read_run(path: str | Path, kind: RunKind = "single") -> Run:
     """Read a run file of ``kind`` from ``path``. All or nothing."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise RunFileError(f"{path}: cannot read run file: {exc.strerror}") from exc
-    except UnicodeDecodeError as exc:
-        raise RunFileError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
-    return parse_run(text, kind, str(path))
+    return parse_run(read_text(path), kind, str(path))
 
 
 def format_run(columns: Mapping[str, Sequence[float] | np.ndarray]) -> str:
