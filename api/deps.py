@@ -55,4 +55,21 @@ def require_key(settings: SettingsDep,
         raise HTTPException(401, "wrong API key", headers={"WWW-Authenticate": "Bearer"})
 
 
+def require_key_to_move(settings: SettingsDep,
+                        credentials: Annotated[HTTPAuthorizationCredentials | None,
+                                               Depends(_bearer)]) -> None:
+    """Routes that start a motor: the key check, and no key configured is no excuse.
+
+    Without ``STAND_API_KEY`` only the simulated stand (python-can ``virtual`` bus, drives
+    simulated in-process) may be started from loopback; real drives never move on an
+    unauthenticated call.
+    """
+    if settings.api_key is None and settings.bus_interface != "virtual":
+        raise HTTPException(401, f"starting a motor on the {settings.bus_interface!r} bus needs "
+                                 "STAND_API_KEY set and 'Authorization: Bearer <key>'",
+                            headers={"WWW-Authenticate": "Bearer"})
+    require_key(settings, credentials)
+
+
 Authorized = Depends(require_key)
+MovesMotor = Depends(require_key_to_move)

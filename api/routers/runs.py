@@ -11,7 +11,7 @@ from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, PlainTextResponse, StreamingResponse
 
-from api.deps import Authorized, JobsDep, SettingsDep, StorageDep
+from api.deps import Authorized, JobsDep, MovesMotor, SettingsDep, StorageDep
 from api.schemas import RunRequest
 from api.uploads import read_upload
 from stand.jsonable import to_jsonable
@@ -36,7 +36,7 @@ def _view(record: RunRecord) -> dict[str, Any]:
     return data
 
 
-@router.post("", status_code=202, dependencies=[Authorized])
+@router.post("", status_code=202, dependencies=[MovesMotor])
 async def start_run(body: RunRequest, jobs: JobsDep, response: Response) -> dict[str, Any]:
     """Queue the runs of an experiment on the stand; 202 with the first run, its
     ``Location``, and ``runs``: the ids of every run of the job, in order."""

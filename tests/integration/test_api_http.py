@@ -170,3 +170,14 @@ def test_without_a_key_only_loopback(tmp_path: Path) -> None:
     with serve(tmp_path / "open", api_key=None) as open_server, open_server.client() as c:
         assert "loopback only" in c.get("/health").json()["auth"]
         assert c.post("/stop").status_code == 200  # local callers may mutate without a key
+
+
+def test_without_a_key_real_drives_never_start(tmp_path: Path) -> None:
+    # No key and a hardware bus: starting a motor is refused before the bus is touched
+    # (the service opens the bus only for a run, so no vcan0/can0 is needed here).
+    env = {"STAND_BUS_INTERFACE": "socketcan", "STAND_BUS_CHANNEL": "can0"}
+    with serve(tmp_path, api_key=None, extra_env=env) as open_server, \
+            open_server.client() as c:
+        answer = c.post("/runs", json=SHORT_RUN)
+        assert answer.status_code == 401
+        assert "STAND_API_KEY" in answer.json()["detail"]
