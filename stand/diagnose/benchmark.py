@@ -24,6 +24,7 @@ import numpy as np
 from stand.diagnose.candidates import EFFECTS
 from stand.diagnose.engine import diagnose
 from stand.diagnose.oracle import visibility
+from stand.errors import StandError
 from stand.excitation import excitation
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
@@ -159,7 +160,10 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[
                  for k, name in enumerate(("train", "holdout"))]
         train, holdout = (read_run(p, "single") for p in paths)
         start = time.perf_counter()
-        result = diagnose(train, holdout)
+        try:
+            result = diagnose(train, holdout)
+        except StandError as exc:  # the engine refused the case: a miss, kept in the count
+            return _refused(case, exc, time.perf_counter() - start, len(holdout))
         elapsed = time.perf_counter() - start
         oracle = (visibility(train, holdout, case.motor, case.effects)
                   if case.effects else None)
@@ -181,6 +185,17 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[
     }
 
 
+def _refused(case: Case, exc: StandError, seconds: float, samples: int) -> dict[str, Any]:
+    """The row of a case the engine refused to diagnose (counted as wrong)."""
+    return {
+        "index": case.index, "truth": case.truth, "verdict": "error", "top1": False,
+        "exact": False, "gap_percent": None, "verdict_gap_percent": None,
+        "true_shrink": None, "visible": True, "oracle_shrink": None, "oracle_p": None,
+        "seconds": seconds, "samples": samples, "mode": case.mode, "kind": case.kind,
+        "dt_s": case.dt_s, "effects": case.effects, "scores": {}, "error": str(exc),
+    }
+
+
 def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Figures of the benchmark: accuracy, false alarms, shrink, confusion matrix."""
     labels = ["none", *EFFECTS]
@@ -193,6 +208,7 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     visible = [r for r in rows if r.get("visible", True)]
     return {
         "cases": len(rows),
+        "refused": sum(r["verdict"] == "error" for r in rows),
         "visible_cases": len(visible),
         "visible_top1_accuracy": (float(np.mean([r["top1"] for r in visible]))
                                   if visible else None),

@@ -19,11 +19,12 @@ from scipy import stats
 
 #: Family-wise false-alarm probability of one selection step (over all candidates).
 FAMILY_ALPHA = 0.01
-#: Smallest shrink of the gap that counts as explaining part of it. The p-value already
-#: holds the noise; this only asks that the candidate improve the simulated speed (the
-#: gap of CONTRACT §3) visibly, not just the equation error, which a model may improve
-#: without bringing the free run closer.
-MIN_SHRINK = 0.01
+#: Smallest shrink of the gap that counts as explaining part of it. The paired test
+#: holds sensor noise, not the nominal model's own structural error (the sampled
+#: current misses the intra-sample current of a fast loop, for one): on effect-free
+#: runs candidates that absorb a little of that error pass the test with shrinks of
+#: 1-4 %, so a candidate must also shrink the gap by this much.
+MIN_SHRINK = 0.05
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,8 @@ def main(argv: list[str] | None = None) -> int:
                 out.write(json.dumps(row) + "\n")
     print(confusion_table(summary))
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
+    if summary["refused"]:
+        print(f"cases the engine refused (counted wrong): {summary['refused']}")
     print(f"top-1 accuracy {_percent(summary['top1_accuracy'])}  "
           f"(exact set {_percent(summary['exact_accuracy'])})")
     print(f"false alarms on none {_percent(summary['false_alarm_rate'])} of "
