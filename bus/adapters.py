@@ -22,6 +22,40 @@ NOTIFIER_CYCLE_S = 0.1
 #: The embedded default: python-can's in-process virtual bus.
 DEFAULT_INTERFACE = "virtual"
 DEFAULT_CHANNEL = "motorstand"
+#: Mask of a CANopen function code: the 4 high bits of an 11-bit COB-ID select the object.
+FUNCTION_MASK = 0x780
+EXACT_MASK = 0x7FF
+#: What a master must hear (CiA 301 predefined connection set, any node id): EMCY (and a
+#: SYNC), TPDO1-4, SDO responses, heartbeats. 11-bit frames only.
+MASTER_RECEIVES = (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x700)
+#: What a drive must hear: NMT and SYNC (exact ids), RPDO1-4 and SDO requests (any node id).
+DRIVE_RECEIVES_EXACT = (0x000, 0x080)
+DRIVE_RECEIVES = (0x200, 0x300, 0x400, 0x500, 0x600)
+
+
+def receive_filters(role: str) -> list[dict[str, Any]]:
+    """python-can ``can_filters`` passing only the 11-bit frames ``role`` needs.
+
+    ``role`` is ``"master"`` or ``"drive"``. On SocketCAN the kernel applies them, so
+    foreign traffic (other ids, every 29-bit frame) never wakes a Python reader; other
+    interfaces filter in python-can.
+    """
+    if role == "master":
+        return [{"can_id": base, "can_mask": FUNCTION_MASK, "extended": False} for base in MASTER_RECEIVES]
+    if role == "drive":
+        return ([{"can_id": cob, "can_mask": EXACT_MASK, "extended": False} for cob in DRIVE_RECEIVES_EXACT]
+                + [{"can_id": base, "can_mask": FUNCTION_MASK, "extended": False} for base in DRIVE_RECEIVES])
+    raise InputError(f"role must be 'master' or 'drive', not {role!r}")
+
+
+def has_kernel_timers(bus: can.BusABC | None) -> bool:
+    """True when ``bus`` sends periodic frames from kernel timers (SocketCAN's broadcast
+    manager), which keep their period however busy the Python process is."""
+    try:
+        from can.interfaces.socketcan import SocketcanBus
+    except ImportError:  # pragma: no cover - not Linux
+        return False
+    return isinstance(bus, SocketcanBus)
 
 
 @dataclass(frozen=True)
@@ -87,9 +121,17 @@ class StandardFrameListener(canopen.network.MessageListener):
             super().on_message_received(msg)
 
 
-def connect_network(config: BusConfig, network: canopen.Network | None = None) -> canopen.Network:
-    """``network`` (default: a new one) on ``config``'s bus, its reader thread started."""
+def connect_network(config: BusConfig, network: canopen.Network | None = None,
+                    role: str | None = None) -> canopen.Network:
+    """``network`` (default: a new one) on ``config``'s bus, its reader thread started.
+
+    With ``role`` (``"master"`` or ``"drive"``) the bus receives only what that role needs
+    (:func:`receive_filters`), unless ``config.options`` sets ``can_filters`` itself.
+    """
     network = network if network is not None else canopen.Network()
+    if role is not None and "can_filters" not in config.options:
+        config = BusConfig(config.interface, config.channel, config.bitrate,
+                           {**config.options, "can_filters": receive_filters(role)})
     network.bus = open_bus(config)
     network.listeners = [StandardFrameListener(network)]
     network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S

@@ -18,10 +18,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+import can
 import canopen
 from canopen.sdo import SdoAbortedError
 
 from bus import cia402
+from bus.adapters import has_kernel_timers
 from bus.eds import Scaling, load_od
 from bus.pdo import COB_ID_INVALID, Layout
 from stand.physics.plant import Measurement
@@ -97,7 +99,12 @@ class SimDriveNode:
         self.heartbeat_period_s = 0.0
         self._heartbeat_due = 0.0
         self._heartbeat_lock = threading.Lock()
-        # The node produces its own heartbeat (heartbeat_tick), not canopen's cyclic task.
+        # The node produces its own heartbeat, not canopen's cyclic task: from a kernel timer
+        # where the bus has them (SocketCAN broadcast manager: on time however busy this
+        # process is, as a drive's firmware timer), else from heartbeat_tick.
+        self._kernel_heartbeat = has_kernel_timers(network.bus)
+        self._heartbeat_task: can.CyclicSendTaskABC | None = None
+        self._heartbeat_state = -1
         self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.pdo_drop_every = 0  # fault injection: drop every n-th TPDO (0 = none)
         self._tpdo_count = 0
@@ -140,13 +147,48 @@ class SimDriveNode:
         with self._heartbeat_lock:
             self.heartbeat_period_s = period_ms / 1000.0
             self._heartbeat_due = time.monotonic() + self.heartbeat_period_s
+            if self._kernel_heartbeat:
+                self._stop_heartbeat_task()
+                if self.heartbeat_period_s and not self.heartbeat_muted:
+                    state = self.nmt_state
+                    bus = self.network.bus
+                    assert bus is not None
+                    self._heartbeat_task = bus.send_periodic(self._heartbeat_frame(state),
+                                                             self.heartbeat_period_s)
+                    self._heartbeat_state = state
+
+    def _heartbeat_frame(self, state: int) -> can.Message:
+        return can.Message(arbitration_id=0x700 + self.id, data=bytes([state]), is_extended_id=False)
+
+    def _stop_heartbeat_task(self) -> None:
+        """Stop the kernel's heartbeat task, if any (the heartbeat lock is held)."""
+        task, self._heartbeat_task = self._heartbeat_task, None
+        if task is not None:
+            try:
+                task.stop()
+            except (can.CanError, OSError) as exc:  # the bus may be shutting down
+                log.debug("node %d: stopping the heartbeat task: %s", self.id, exc)
+
+    def _refresh_heartbeat(self) -> None:
+        """Kernel heartbeat: carry the present NMT state from the next beat on (the timer
+        keeps running, so the beats stay one period apart)."""
+        with self._heartbeat_lock:
+            task, state = self._heartbeat_task, self.nmt_state
+            if task is not None and state != self._heartbeat_state:
+                assert isinstance(task, can.ModifiableCyclicTaskABC)
+                task.modify_data(self._heartbeat_frame(state))
+                self._heartbeat_state = state
 
     def heartbeat_tick(self, now: float) -> float | None:
         """Send the heartbeat if it is due at ``now``; return when the next one is due.
 
         Called from the SYNC handler and from the stand's heartbeat thread, whichever comes
-        first, as drive firmware polls its timers in its main loop.
+        first, as drive firmware polls its timers in its main loop. With a kernel heartbeat
+        it only keeps the beat's NMT state current (and returns None).
         """
+        if self._kernel_heartbeat:
+            self._refresh_heartbeat()
+            return None
         with self._heartbeat_lock:
             period = self.heartbeat_period_s
             if not period or self.heartbeat_muted:
@@ -157,7 +199,9 @@ class SimDriveNode:
             return self._heartbeat_due
 
     def close(self) -> None:
-        self.heartbeat_muted = True
+        with self._heartbeat_lock:
+            self.heartbeat_muted = True
+            self._stop_heartbeat_task()
         self.network.unsubscribe(0, self._on_nmt)
         self._resubscribe({})
 
@@ -165,6 +209,7 @@ class SimDriveNode:
         """Fault injection: stop producing heartbeats (the node otherwise keeps working)."""
         with self._heartbeat_lock:
             self.heartbeat_muted = True
+            self._stop_heartbeat_task()
 
     # -- NMT ---------------------------------------------------------------------------
     def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
@@ -172,6 +217,8 @@ class SimDriveNode:
         if target not in (0, self.id):
             return
         if command in (0x81, 0x82):  # reset node / reset communication
+            with self._heartbeat_lock:
+                self._stop_heartbeat_task()  # the boot-up is the first frame after a reset
             self._power_on()
             if command == 0x81 and self._on_reset:
                 self._on_reset(self)
@@ -181,6 +228,7 @@ class SimDriveNode:
         if self.nmt_state == NMT_OPERATIONAL:
             self._tpdos = None
             self._resubscribe(self._rpdo_layouts())
+        self._refresh_heartbeat()
 
     # -- SDO callbacks -----------------------------------------------------------------
     def _on_sdo_read(self, index: int, subindex: int, od: Any) -> Any:

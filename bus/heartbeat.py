@@ -2,10 +2,14 @@
 
 Each drive produces a heartbeat every period (0x1017) carrying its NMT state; its
 boot-up message is a heartbeat with state 0. A heartbeat is late when the bus has carried
-frames stamped more than ``HEARTBEAT_CONSUMER_FACTOR`` periods after it (bus time: the
-stamps the interface puts on frames), so a reader thread that the OS holds up for a while
-raises no false alarm; when the bus falls silent altogether (the reader has handed on no
-frame for a consumer time), wall time decides, after ``SILENT_BUS_FACTOR`` consumer times.
+frames stamped more than a consumer time (``consumer_factor`` periods, default
+``HEARTBEAT_CONSUMER_FACTOR``; CiA 301 wants it longer than the producer time) after it
+(bus time: the stamps the interface puts on frames as they arrive, ``msg.timestamp``), so a
+reader thread that the OS holds up for a while raises no false alarm; when the bus falls
+silent altogether (the reader has handed on no frame for a consumer time), wall time
+decides, after ``SILENT_BUS_FACTOR`` consumer times, and only once the silence has lasted
+``SILENCE_CONFIRM_S`` more of the caller's checks (right after the whole process was held
+up, the reader has not yet handed on what the bus carried meanwhile).
 An EMCY with a non-zero error code is a fault.
 """
 
@@ -18,7 +22,7 @@ import time
 import can
 import canopen
 
-from stand.errors import BusError, DriveFault, HeartbeatLost
+from stand.errors import BusError, DriveFault, HeartbeatLost, InputError
 
 log = logging.getLogger(__name__)
 
@@ -26,6 +30,9 @@ log = logging.getLogger(__name__)
 HEARTBEAT_CONSUMER_FACTOR = 1.5
 #: On a silent bus, a heartbeat is lost after this many consumer times of wall time.
 SILENT_BUS_FACTOR = 2.0
+#: A silent bus must stay silent this long across checks before wall time decides, s
+#: (longer than the bus reader needs to drain its queue once it runs again).
+SILENCE_CONFIRM_S = 0.05
 NMT_STATE_NAMES = {0: "BOOT-UP", 4: "STOPPED", 5: "OPERATIONAL", 127: "PRE-OPERATIONAL"}
 
 
@@ -45,7 +52,14 @@ class BusClock(can.Listener):
 class Supervisor:
     """Watches the heartbeats, boot-ups and EMCYs of a set of nodes on ``network``."""
 
-    def __init__(self, network: canopen.Network) -> None:
+    def __init__(self, network: canopen.Network,
+                 consumer_factor: float = HEARTBEAT_CONSUMER_FACTOR) -> None:
+        if not consumer_factor > 1.0:
+            raise InputError(f"heartbeat consumer time must exceed the producer period "
+                             f"(CiA 301): consumer_factor {consumer_factor} <= 1")
+        self.consumer_factor = consumer_factor
+        self._silence_seen: float | None = None
+        self._last_check = 0.0
         self.network = network
         self.clock = BusClock()
         assert network.notifier is not None, "connect the network first"
@@ -88,17 +102,23 @@ class Supervisor:
 
     def check(self, node_ids: list[int], period_s: float) -> BusError | None:
         """A heartbeat loss or an EMCY among ``node_ids``, or None."""
-        limit = HEARTBEAT_CONSUMER_FACTOR * period_s
+        limit = self.consumer_factor * period_s
         newest = self.clock.newest
         now = time.monotonic()
         silent = now - self.clock.last_frame_monotonic > limit
+        if not silent or now - self._last_check > limit:
+            self._silence_seen = None  # heard the bus, or not looked for a long while
+        if silent and self._silence_seen is None:
+            self._silence_seen = now
+        self._last_check = now
+        confirmed = self._silence_seen is not None and now - self._silence_seen >= SILENCE_CONFIRM_S
         for node_id in node_ids:
             beat = self.heartbeats.get(node_id)
             if beat is None:
                 continue
             received, _, stamp = beat
             bus_age, wall_age = newest - stamp, now - received
-            if bus_age > limit or (silent and wall_age > SILENT_BUS_FACTOR * limit):
+            if bus_age > limit or (confirmed and wall_age > SILENT_BUS_FACTOR * limit):
                 return HeartbeatLost(f"node {node_id}: no heartbeat for {max(bus_age, wall_age):.3f} s "
                                      f"(period {period_s} s); every drive was quick-stopped")
         for node_id in node_ids:

@@ -24,7 +24,7 @@ import numpy as np
 from bus import cia402
 from bus.adapters import BusConfig, connect_network
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
-from bus.heartbeat import Supervisor
+from bus.heartbeat import HEARTBEAT_CONSUMER_FACTOR, Supervisor
 from bus.sampler import Sampler, Samples
 from bus.sync import (
     SYNC_COB_ID,
@@ -52,6 +52,9 @@ POLL_S = 0.01
 #: Stand time the drives spend in quick stop after a run before they are disabled, s.
 STOP_RAMP_S = 0.1
 NMT_START, NMT_PRE_OPERATIONAL, NMT_RESET_NODE = 0x01, 0x80, 0x81
+#: Interfaces that hand the sender its own frames back with their bus stamp when asked
+#: (``receive_own_messages``); the master takes each SYNC's time on the bus from the echo.
+ECHO_INTERFACES = ("socketcan", "virtual")
 
 ChunkCallback = Callable[[Samples, int, int], None]
 ProgressCallback = Callable[[int, int], None]
@@ -87,22 +90,33 @@ class Master:
         The bus.
     heartbeat_period_s, sdo_timeout_s, pdo_timeout_s, boot_timeout_s : float
         Timeouts (the module constants by default; tests shrink them), s.
+    heartbeat_consumer_factor : float
+        Heartbeat consumer time as a multiple of the producer period (> 1, CiA 301).
     """
 
     def __init__(self, config: BusConfig | None = None, *,
                  heartbeat_period_s: float = HEARTBEAT_PERIOD_S,
                  sdo_timeout_s: float = SDO_TIMEOUT_S, pdo_timeout_s: float = PDO_TIMEOUT_S,
-                 boot_timeout_s: float = BOOT_TIMEOUT_S) -> None:
+                 boot_timeout_s: float = BOOT_TIMEOUT_S,
+                 heartbeat_consumer_factor: float = HEARTBEAT_CONSUMER_FACTOR) -> None:
         self.config = config or BusConfig()
+        #: Real time: each window's SYNC is stamped from its echo (its own bus stamp, in bus
+        #: order with the answers); elsewhere from the time ``send`` returned.
+        self.sync_echo = self.config.interface in ECHO_INTERFACES
+        bus_config = self.config
+        if self.sync_echo and "receive_own_messages" not in bus_config.options:
+            # The master's receive filters pass 0x080, so of its own frames only SYNC returns.
+            bus_config = BusConfig(bus_config.interface, bus_config.channel, bus_config.bitrate,
+                                   {**bus_config.options, "receive_own_messages": True})
         self.heartbeat_period_s = heartbeat_period_s
         self.sdo_timeout_s = sdo_timeout_s
         self.pdo_timeout_s = pdo_timeout_s
         self.boot_timeout_s = boot_timeout_s
         self.network = MasterNetwork()
         self.network.channel = self.config.channel
-        connect_network(self.config, self.network)
+        connect_network(bus_config, self.network, role="master")
         self.drives: list[Drive] = []
-        self.supervisor = Supervisor(self.network)
+        self.supervisor = Supervisor(self.network, heartbeat_consumer_factor)
         self._counters: dict[int, dict[str, int]] = {}
         self._quick_stop = threading.Event()
         #: One counter for every SYNC the master sends (0x1019 is set on the drives).
@@ -245,13 +259,20 @@ class Master:
         window_s = SYNC_WINDOW_FRACTION * self.period_s if time_mode == "realtime" else 0.0
         sampler = Sampler(tpdos, [d.id for d in self.drives], [d.config.scaling for d in self.drives],
                           n, self.period_s, window_s)
-        trace = Trace(trace_path) if trace_path else None
+        trace = Trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ()) if trace_path else None
         if trace is not None:
             assert self.network.notifier is not None
             self.network.notifier.add_listener(trace)
             self.network.trace = trace
         for cob in tpdos:
             self.network.subscribe(cob, sampler.on_tpdo)
+        echo = self.sync_echo and time_mode == "realtime"
+
+        def on_sync_echo(can_id: int, data: bytearray, timestamp: float) -> None:
+            sampler.sent(timestamp, data[0] if data else 0)
+
+        if echo:
+            self.network.subscribe(SYNC_COB_ID, on_sync_echo)
         frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
                    for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
                   if d.rpdo is not None]
@@ -274,6 +295,8 @@ class Master:
                 value, data = counter.next()
                 sampler.open(k, wall, value)
                 send(SYNC_COB_ID, data)
+                if not echo:
+                    sampler.sent(time.time())
                 if clock is None:
                     error = self._await_window(sampler, stop)
                     if error is not None:
@@ -291,6 +314,8 @@ class Master:
             self.running = False
             for cob in tpdos:
                 self.network.unsubscribe(cob, sampler.on_tpdo)
+            if echo:
+                self.network.unsubscribe(SYNC_COB_ID, on_sync_echo)
             if trace is not None:
                 self.network.trace = None
                 assert self.network.notifier is not None

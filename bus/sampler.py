@@ -130,7 +130,8 @@ class Sampler:
         self.wall_s = np.zeros(samples)
         self.sync_counter = np.zeros(samples, dtype=np.int16)
         self.window = -1
-        self._opened_stamp = 0.0
+        self._opened_stamp: float | None = 0.0
+        self._parked: list[tuple[int, bytearray, float]] = []
         self._arrived = 0
         self.complete = threading.Event()
         self._lock = threading.Lock()
@@ -138,48 +139,85 @@ class Sampler:
                       for cob, (d, p, layout) in tpdos.items()}
 
     def open(self, k: int, wall_s: float, counter: int) -> None:
-        """Open window ``k`` (just before SYNC ``k`` is sent)."""
+        """Open window ``k`` (just before SYNC ``k`` is sent).
+
+        Lockstep (no synchronous window): the drives answer only after the SYNC, so the
+        window's reference stamp is taken now. Real time: the reference is the SYNC's own bus
+        stamp (or the time ``send`` returned), given by :meth:`sent`; TPDOs that arrive
+        before that are held and judged then (a late answer to SYNC ``k - 1`` that reached
+        the bus while SYNC ``k`` was being sent is stamped before SYNC ``k``).
+        """
         with self._lock:
-            self._opened_stamp = time.time()
+            self._drop_parked()
+            self._opened_stamp = None if self.window_s else time.time()
             self.window = k
             self._arrived = 0
             self.complete.clear()
             self.wall_s[k] = wall_s
             self.sync_counter[k] = counter
 
+    def sent(self, stamp: float, counter: int = 0) -> None:
+        """SYNC of the open window is on the bus, stamped ``stamp`` (its own bus stamp as the
+        interface echoed it, or ``time.time()`` after ``send`` returned, which is never
+        before that). ``counter`` is the echoed SYNC's counter byte: an echo of an earlier
+        window's SYNC that the reader hands on late is ignored (0: no counter, not checked).
+        """
+        with self._lock:
+            if self.window < 0 or (counter and counter != self.sync_counter[self.window]):
+                return
+            if self._opened_stamp is None:
+                self._opened_stamp = stamp
+                parked, self._parked = self._parked, []
+                for args in parked:
+                    self._take(*args)
+
     def close(self) -> None:
         """No window is open any more; TPDOs arriving now are late."""
         with self._lock:
             self.window = -1
+            self._drop_parked()
+
+    def _drop_parked(self) -> None:
+        """TPDOs held for a window whose SYNC was never confirmed are late (lock held)."""
+        for can_id, _, _ in self._parked:
+            self.late[self._plan[can_id][0]] += 1
+        self._parked = []
 
     def on_tpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """Subscriber of every expected TPDO COB-ID (called from the bus reader thread)."""
-        d, p, layout, names = self._plan[can_id]
         with self._lock:
-            k = self.window
-            after = timestamp - self._opened_stamp
-            if k < 0 or -SAME_EPOCH_S < after < 0 or (self.window_s and SAME_EPOCH_S > after > self.window_s):
-                # No window open, or the frame is stamped before this window's SYNC was
-                # sent (it answers an earlier SYNC) or after the synchronous window.
+            if self.window >= 0 and self._opened_stamp is None:
+                self._parked.append((can_id, data, timestamp))  # judged once the SYNC is out
+                return
+            self._take(can_id, data, timestamp)
+
+    def _take(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """Record one TPDO in the open window (the lock is held)."""
+        d, p, layout, names = self._plan[can_id]
+        k = self.window
+        after = timestamp - (self._opened_stamp or 0.0)
+        if k < 0 or -SAME_EPOCH_S < after < 0 or (self.window_s and SAME_EPOCH_S > after > self.window_s):
+            # No window open, or the frame is stamped before this window's SYNC was
+            # sent (it answers an earlier SYNC) or after the synchronous window.
+            self.late[d] += 1
+            return
+        received = self.received[d]
+        if received[p, k]:
+            self.duplicates[d] += 1
+            if k > 0 and not received[p, k - 1]:
+                # The first frame of this window may have been the late answer to the
+                # last SYNC: neither can be told apart, so this sample is not trusted.
+                received[p, k] = False
                 self.late[d] += 1
-                return
-            received = self.received[d]
-            if received[p, k]:
-                self.duplicates[d] += 1
-                if k > 0 and not received[p, k - 1]:
-                    # The first frame of this window may have been the late answer to the
-                    # last SYNC: neither can be told apart, so this sample is not trusted.
-                    received[p, k] = False
-                    self.late[d] += 1
-                return
-            received[p, k] = True
-            raw = self.raw[d]
-            for name, value in zip(names, layout.unpack(data), strict=True):
-                if name is not None:
-                    raw[name][k] = value
-            self._arrived += 1
-            if self._arrived == self.expected:
-                self.complete.set()
+            return
+        received[p, k] = True
+        raw = self.raw[d]
+        for name, value in zip(names, layout.unpack(data), strict=True):
+            if name is not None:
+                raw[name][k] = value
+        self._arrived += 1
+        if self._arrived == self.expected:
+            self.complete.set()
 
     def result(self, count: int, aborted: str | None = None) -> Samples:
         """The first ``count`` windows in SI units."""

@@ -88,7 +88,7 @@ class SimStand:
             self.period_s = self.motors[0].sample_period_s
         self.effects = effects
         self.plant: Plant = self._build_plant()
-        self.network = connect_network(config or BusConfig())
+        self.network = connect_network(config or BusConfig(), role="drive")
         self.nodes = [
             SimDriveNode(self.network, node_id, self._current_plant, port, scaling_for(motor),
                          OVER_CURRENT_FACTOR * motor.drive.current_limit_A, eds,
@@ -148,6 +148,9 @@ class SimStand:
         stamp: float | None = timestamp
         if abs(time.time() - timestamp) > SAME_EPOCH_S:
             stamp = None  # the interface stamps frames on another clock
+        now = time.monotonic()
+        for node in self.nodes:  # a due heartbeat first: it is older than the TPDOs
+            node.heartbeat_tick(now)
         for node in self.nodes:
             node.sample(dt_s, stamp)
         for node in self.nodes:

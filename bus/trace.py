@@ -20,7 +20,9 @@ TRACE_SUFFIXES = (".log", ".asc", ".blf")
 class Trace(can.Listener):
     """A thread-safe writer of one trace file."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, echoed: tuple[int, ...] = ()) -> None:
+        #: 11-bit ids the master's bus hands back to it (its own frames): not logged twice.
+        self.echoed = frozenset(echoed)
         self.path = Path(path)
         if self.path.suffix not in TRACE_SUFFIXES:
             raise InputError(f"trace file must end in {', '.join(TRACE_SUFFIXES)}: {self.path}")
@@ -31,6 +33,11 @@ class Trace(can.Listener):
         self._closed = False
 
     def on_message_received(self, msg: can.Message) -> None:
+        if not msg.is_extended_id and msg.arbitration_id in self.echoed:
+            return  # the bus echoing a frame the master sent: logged by :meth:`sent`
+        self._log(msg)
+
+    def _log(self, msg: can.Message) -> None:
         with self._lock:
             if self._closed:
                 return
@@ -40,7 +47,7 @@ class Trace(can.Listener):
     def sent(self, msg: can.Message) -> None:
         """Log a frame the master sent (stamped now)."""
         msg.timestamp = time.time()
-        self.on_message_received(msg)
+        self._log(msg)
 
     def stop(self) -> None:
         with self._lock:
