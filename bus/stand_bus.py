@@ -21,6 +21,7 @@ from bus.eds import Scaling
 from bus.master import ChunkCallback, Master, ProgressCallback
 from bus.sampler import Samples
 from bus.simstand import SimStand
+from stand.errors import InputError
 
 
 class DriveSetupLike(Protocol):
@@ -57,7 +58,7 @@ class StandBus:
         self.sim: SimStand | None = None
         if simulate:
             if profile is None:
-                raise ValueError("a profile is needed to simulate the drives")
+                raise InputError("StandBus: simulate=True needs a profile to simulate the drives")
             self.sim = SimStand(profile, self.config, seed)
         try:
             self.master = Master(self.config, **master_options)

@@ -19,6 +19,7 @@ import numpy as np
 
 from stand.diagnose.model import FittedModel, ModelSpec, fit_residual_batch
 from stand.diagnose.signals import Signals
+from stand.errors import InputError
 
 #: Effect names in vocabulary order (``none`` excluded).
 EFFECTS: tuple[str, ...] = ("coulomb_friction", "stribeck_friction", "cogging",
@@ -92,7 +93,7 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
         grid = np.geomspace(low, max(MAX_GAP_RAD, 4 * low), GRID_POINTS)
         return _best([base.merged(ModelSpec(backlash_gap=float(g))) for g in grid], train,
                      negative="load_accel")
-    raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
+    raise InputError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 
 def _torque(value_per_J: float, model: FittedModel, kt: float | None, name: str,
@@ -165,7 +166,7 @@ def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
         return (a.backlash_gap is not None and b.backlash_gap is not None
                 and ca["load_accel"] < 0 and cb["load_accel"] < 0
                 and _ratio_ok(a.backlash_gap, b.backlash_gap, 2 * AGREE_RATIO))
-    raise ValueError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
+    raise InputError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 
 def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float | int | None]:

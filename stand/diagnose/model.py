@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stand.diagnose.signals import Signals
-from stand.errors import NotExcitedError
+from stand.errors import InputError, NotExcitedError
 from stand.ident.qmatrix import QSums, solve
 
 #: Samples dropped at each end of a run in the fit (filter and shift transients).
@@ -221,7 +221,7 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
     if name == "load_accel":
         _, omega_l = load_estimate(theta, omega, spec.backlash_gap or 0.0, sig.dt_s)
         return np.asarray(np.gradient(omega_l, sig.dt_s))
-    raise ValueError(f"unknown input column {name!r}")
+    raise InputError(f"unknown input column {name!r}")
 
 
 def regressors(spec: ModelSpec, sig: Signals) -> dict[str, np.ndarray]:
