@@ -14,6 +14,7 @@ import subprocess
 import threading
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import can
 
@@ -52,6 +53,17 @@ class Frame:
     is_extended_id: bool
     is_remote_frame: bool
     data: bytes
+
+
+def interrupt(proc: subprocess.Popen[Any]) -> None:
+    """Stop a can-utils tool as a user would (SIGINT), killing it if it does not end."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(CANDUMP_STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def parse_candump_line(line: str) -> Frame | None:
@@ -151,13 +163,7 @@ class Candump:
             self._marker_bus.shutdown()
             self._marker_bus = None
         if self._proc is not None:
-            if self._proc.poll() is None:
-                self._proc.send_signal(signal.SIGINT)
-                try:
-                    self._proc.wait(CANDUMP_STOP_TIMEOUT_S)
-                except subprocess.TimeoutExpired:
-                    self._proc.kill()
-                    self._proc.wait()
+            interrupt(self._proc)
             for stream in (self._proc.stdout, self._proc.stderr):
                 if stream is not None:
                     stream.close()
@@ -223,13 +229,7 @@ class Cangen:
             # it exit with an error status.
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self._proc.wait(CANDUMP_STOP_TIMEOUT_S)
-        if self._proc.poll() is None:
-            self._proc.send_signal(signal.SIGINT)
-            try:
-                self._proc.wait(CANDUMP_STOP_TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait()
+        interrupt(self._proc)
         if self._proc.stderr is not None:
             self.stderr = self._proc.stderr.read().decode(errors="replace")
             self._proc.stderr.close()
