@@ -7,7 +7,9 @@ set the transmission type, make it valid again).
 
 from __future__ import annotations
 
+import contextlib
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -83,29 +85,30 @@ class Drive:
         except KeyError as exc:
             raise BusError(f"node {self.id}: object 0x{index:04X}:{subindex} is not in its EDS") from exc
 
+    @contextlib.contextmanager
+    def _sdo(self, index: int, subindex: int, var: Any, reading: str,
+             aborted: str) -> Iterator[None]:
+        """Name the node and the object in SDO errors (``reading``/``aborted`` say what)."""
+        try:
+            yield
+        except canopen.SdoCommunicationError as exc:
+            raise BusTimeout(f"node {self.id}: no SDO answer {reading} 0x{index:04X}:{subindex} "
+                             f"({var.name}): {exc}; is the drive powered and on the bus?") from exc
+        except canopen.SdoAbortedError as exc:
+            raise BusError(f"node {self.id}: SDO {aborted} 0x{index:04X}:{subindex} ({var.name}) "
+                           f"aborted: {exc}") from exc
+
     def read(self, index: int, subindex: int = 0) -> Any:
         """SDO upload of ``index:subindex``; errors name the node and the object."""
         var = self._variable(index, subindex)
-        try:
+        with self._sdo(index, subindex, var, "reading", "read of"):
             return var.raw
-        except canopen.SdoCommunicationError as exc:
-            raise BusTimeout(f"node {self.id}: no SDO answer reading 0x{index:04X}:{subindex} "
-                             f"({var.name}): {exc}; is the drive powered and on the bus?") from exc
-        except canopen.SdoAbortedError as exc:
-            raise BusError(f"node {self.id}: SDO read of 0x{index:04X}:{subindex} ({var.name}) "
-                           f"aborted: {exc}") from exc
 
     def write(self, index: int, subindex: int, value: Any) -> None:
         """SDO download of ``value`` to ``index:subindex``."""
         var = self._variable(index, subindex)
-        try:
+        with self._sdo(index, subindex, var, "writing", f"write of {value!r} to"):
             var.raw = value
-        except canopen.SdoCommunicationError as exc:
-            raise BusTimeout(f"node {self.id}: no SDO answer writing 0x{index:04X}:{subindex} "
-                             f"({var.name}): {exc}; is the drive powered and on the bus?") from exc
-        except canopen.SdoAbortedError as exc:
-            raise BusError(f"node {self.id}: SDO write of {value!r} to 0x{index:04X}:{subindex} "
-                           f"({var.name}) aborted: {exc}") from exc
 
     def has(self, index: int) -> bool:
         return index in self.od
