@@ -15,16 +15,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cases", type=int, default=200, help="number of blind cases")
     parser.add_argument("--seed", type=int, default=1, help="seed of the drawn cases")
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
+    parser.add_argument("--min-snr", type=float, default=None,
+                        help="least SNR of a planted effect on HOLDOUT (default "
+                        "stand.diagnose.benchmark.MIN_EFFECT_SNR; 0 keeps every first draw)")
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    from stand.diagnose.benchmark import run_benchmark, summarize_cases, timing_case
+    from stand.diagnose.benchmark import MIN_EFFECT_SNR, run_benchmark, summarize_cases, timing_case
 
     if args.cases < 1 or args.workers < 1:
         raise InputError(f"--cases and --workers must be >= 1, got {args.cases}, {args.workers}")
-    rows = run_benchmark(args.cases, args.seed, args.workers)
+    min_snr = MIN_EFFECT_SNR if args.min_snr is None else args.min_snr
+    if not min_snr >= 0:
+        raise InputError(f"--min-snr must be >= 0, got {args.min_snr}")
+    rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=min_snr)
     summary = summarize_cases(rows)
     summary["seed"] = args.seed
+    summary["min_snr"] = min_snr
     summary["timing_20s_1khz"] = timing_case()
     return summary
 
@@ -39,7 +46,8 @@ def summarize(result: dict[str, Any]) -> str:
     timing = result["timing_20s_1khz"]
     return "\n".join([
         confusion_table(result),
-        f"cases {result['cases']} (seed {result['seed']})",
+        f"cases {result['cases']} (seed {result['seed']}), effects drawn until their SNR on "
+        f"HOLDOUT >= {result['min_snr']:g} ({result['redrawn_cases']} cases drawn again)",
         f"top-1 accuracy {_percent(result['top1_accuracy'])} "
         f"(exact set {_percent(result['exact_accuracy'])})",
         f"false alarms on none {_percent(result['false_alarm_rate'])} of "

@@ -1,7 +1,10 @@
 """Blind benchmark of the diagnosis on simulated stands with withheld effects.
 
 Each case draws a motor, a drive mode and excitation, sensors, and zero, one or two
-effects of the vocabulary over wide ranges (:func:`draw_case`); simulates a TRAIN and a
+effects of the vocabulary over wide ranges (:func:`draw_case`); an effect's parameters
+are drawn again until it shows above the sensor noise on HOLDOUT (its SNR,
+:mod:`stand.diagnose.snr`, measured with the TRUE plant, at least ``min_snr``;
+``min_snr=0`` keeps every first draw); simulates a TRAIN and a
 HOLDOUT run with the stand simulator (:mod:`stand.physics`); writes both as CSV files
 (CONTRACT §1) and reads them back, so the diagnosis sees only what a user has; and
 keeps the answer key apart until the verdict is in (:func:`run_case`).
@@ -15,7 +18,7 @@ import math
 import tempfile
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,13 +27,14 @@ import numpy as np
 from stand.diagnose.candidates import EFFECTS
 from stand.diagnose.engine import diagnose
 from stand.diagnose.oracle import visibility
+from stand.diagnose.snr import effect_snr
 from stand.errors import StandError
 from stand.excitation import excitation
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
-from stand.runfile import read_run, write_run
+from stand.runfile import Run, read_run, write_run
 
 #: Length of each of TRAIN and HOLDOUT, s.
 RUN_DURATION_S = 10.0
@@ -44,6 +48,15 @@ STRENGTH_RANGE = (0.03, 0.3)
 MAX_ORDER_DRAWN = 24
 #: Encoder resolutions drawn, lines per revolution (4x quadrature).
 ENCODER_LINES = (500, 1000, 1024, 2000, 2500, 4096, 5000)
+#: Least SNR of the planted effects on HOLDOUT (:mod:`stand.diagnose.snr`): the RMS they
+#: add to the exact nominal model's error at least equals what sensor noise gives.
+MIN_EFFECT_SNR = 1.0
+#: Draws of a case's effect parameters on one stand, and of stands, before the last
+#: draw is kept whatever its SNR.
+EFFECT_DRAWS = 5
+STAND_DRAWS = 8
+#: Re-anchoring horizon of the SNR measurement, s (the diagnosis' default).
+SNR_HORIZON_S = 0.1
 
 
 def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
@@ -67,11 +80,49 @@ class Case:
     hold: int
     dt_s: float
     truth: list[str] = field(default_factory=list)
+    snr: float | None = None
+    draws: int = 1
+    current_ref: float = 0.0
+    omega_ref: float = 0.0
 
 
-def draw_case(index: int, seed: int) -> Case:
-    """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible)."""
+def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
+              duration_s: float = RUN_DURATION_S) -> Case:
+    """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible).
+
+    Which effects a case has is drawn once. Their parameters are drawn again (up to
+    ``EFFECT_DRAWS`` times) until their SNR on HOLDOUT is at least ``min_snr``; a stand
+    and experiment on which they never reach it (backlash under a tight speed loop, a
+    high-order ripple at speed) is drawn anew, up to ``STAND_DRAWS`` times, and the last
+    draw is kept whatever its SNR. The first draw does not depend on ``min_snr``:
+    ``min_snr=0`` gives the cases of an unconditioned draw."""
     rng = np.random.default_rng([seed, index])
+    stand = _draw_stand(index, seed, rng)
+    u = rng.random()
+    count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
+    names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
+    truth = [EFFECTS[k] for k in names]
+    if {"coulomb_friction", "stribeck_friction"} <= set(truth):
+        truth.remove("coulomb_friction")  # Stribeck already holds a Coulomb level
+    draws = 0
+    for attempt in range(STAND_DRAWS):
+        if attempt:
+            rng = np.random.default_rng([seed, index, attempt])
+            stand = _draw_stand(index, seed, rng)
+        for _ in range(EFFECT_DRAWS):
+            draws += 1
+            effects = {name: _draw_effect(name, rng, stand) for name in truth}
+            case = replace(stand, effects=effects, truth=truth or ["none"], draws=draws)
+            if not effects or min_snr <= 0:
+                return case
+            case.snr = case_snr(case, duration_s)
+            if case.snr >= min_snr:
+                return case
+    return case
+
+
+def _draw_stand(index: int, seed: int, rng: np.random.Generator) -> Case:
+    """A motor, drive, sensors and experiment, without effects."""
     J = _log_uniform(rng, 5e-6, 5e-4)
     Kt = _log_uniform(rng, 0.02, 0.2)
     tau = _log_uniform(rng, 0.05, 2.0)
@@ -87,32 +138,27 @@ def draw_case(index: int, seed: int) -> Case:
         hold = max(1, int(round(0.1 / (_log_uniform(rng, 0.3, 3.0) * dt))))
         switch_s = 0.25 / (0.1 / (hold * dt))
     current_ref = J * omega_ref / (Kt * min(tau, switch_s)) + motor.D * omega_ref / Kt
-    torque_ref = Kt * current_ref
     bandwidth_hz = _log_uniform(rng, 10.0, 40.0)
     kp = 2 * math.pi * bandwidth_hz * J / Kt
     drive = DriveParams(mode=mode, supply_V=48.0, current_limit_A=20.0 * current_ref,  # type: ignore[arg-type]
                         current_tau_s=2e-4, speed_kp=kp, speed_ki=kp * 2 * math.pi * bandwidth_hz / 5)
-    lines = int(rng.choice(ENCODER_LINES))
-    sensors = SensorParams(encoder_lines=lines,
+    sensors = SensorParams(encoder_lines=int(rng.choice(ENCODER_LINES)),
                            current_noise_A=_log_uniform(rng, 0.003, 0.03) * current_ref)
-    u = rng.random()
-    count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
-    names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
-    truth = [EFFECTS[k] for k in names]
-    if {"coulomb_friction", "stribeck_friction"} <= set(truth):
-        truth.remove("coulomb_friction")  # Stribeck already holds a Coulomb level
-    effects = {name: _draw_effect(name, rng, torque_ref, current_ref, omega_ref, J, lines, dt)
-               for name in truth}
-    if mode == "current":
-        level, amplitude = 0.0, current_ref
-    else:
-        level, amplitude = 0.0, omega_ref
-    return Case(index, seed, motor, drive, sensors, effects, mode, kind, level, amplitude,
-                hold, dt, truth or ["none"])
+    amplitude = current_ref if mode == "current" else omega_ref
+    return Case(index, seed, motor, drive, sensors, {}, mode, kind, 0.0, amplitude, hold, dt,
+                current_ref=current_ref, omega_ref=omega_ref)
 
 
-def _draw_effect(name: str, rng: np.random.Generator, torque_ref: float, current_ref: float,
-                 omega_ref: float, J: float, lines: int, dt: float) -> dict[str, float]:
+def case_snr(case: Case, duration_s: float = RUN_DURATION_S) -> float:
+    """SNR of the case's effects on its HOLDOUT run (:func:`stand.diagnose.snr.effect_snr`)."""
+    J_with = case.motor.J + case.effects.get("backlash", {}).get("J_load", 0.0)
+    return effect_snr(_simulate(case, 1, duration_s), _simulate(case, 1, duration_s, {}),
+                      case.motor.J, J_with, case.motor.D, case.motor.Kt, SNR_HORIZON_S)
+
+
+def _draw_effect(name: str, rng: np.random.Generator, stand: Case) -> dict[str, float]:
+    current_ref, omega_ref, lines = stand.current_ref, stand.omega_ref, stand.sensors.encoder_lines
+    torque_ref, J = stand.motor.Kt * current_ref, stand.motor.J
     strength = _log_uniform(rng, *STRENGTH_RANGE)
     max_order = max(2, min(MAX_ORDER_DRAWN, 4 * lines // 16))
     if name == "coulomb_friction":
@@ -138,8 +184,17 @@ def _draw_effect(name: str, rng: np.random.Generator, torque_ref: float, current
 
 def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) -> dict[str, np.ndarray]:
     """Columns of the TRAIN (``which=0``) or HOLDOUT (1) run of ``case``."""
+    run = _simulate(case, which, duration_s)
+    return {k: run[k] for k in ("time_s", "current_A", "position_rad")}
+
+
+def _simulate(case: Case, which: int, duration_s: float,
+              effects: dict[str, dict[str, float]] | None = None) -> Run:
+    """The TRAIN (``which=0``) or HOLDOUT (1) run of ``case``, with the truth in ``meta``;
+    ``effects`` replaces the case's effects (same command, sensors and noise seed)."""
     seed = case.seed * 100_003 + case.index * 2 + which
-    plant = MotorPlant(case.motor, case.drive, case.sensors, Effects.from_mapping(case.effects),
+    chosen = case.effects if effects is None else effects
+    plant = MotorPlant(case.motor, case.drive, case.sensors, Effects.from_mapping(chosen),
                        seed=seed)
     samples = int(round(duration_s / case.dt_s))
     hold, amplitude = case.hold, case.amplitude
@@ -148,13 +203,13 @@ def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) ->
         hold = max(1, int(round(hold * _log_uniform(rng, 0.6, 1.6))))
         amplitude *= rng.uniform(0.7, 1.3)
     command = excitation(case.kind, samples, case.dt_s, case.level, amplitude, hold, seed=seed)
-    run = simulate_motor(plant, case.mode, command, case.dt_s)
-    return {k: run[k] for k in ("time_s", "current_A", "position_rad")}
+    return simulate_motor(plant, case.mode, command, case.dt_s)
 
 
-def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[str, Any]:
+def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
+             min_snr: float = MIN_EFFECT_SNR) -> dict[str, Any]:
     """Draw, simulate, write, read back and diagnose one case blind; then score it."""
-    case = draw_case(index, seed)
+    case = draw_case(index, seed, min_snr, duration_s)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
         paths = [write_run(Path(folder) / f"{name}.csv", simulate_case(case, k, duration_s))
                  for k, name in enumerate(("train", "holdout"))]
@@ -180,6 +235,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S) -> dict[
         "oracle_shrink": oracle.shrink if oracle else None,
         "oracle_p": oracle.p_value if oracle else None, "seconds": elapsed, "samples": len(holdout),
         "mode": case.mode, "kind": case.kind, "dt_s": case.dt_s, "effects": case.effects,
+        "snr": case.snr, "draws": case.draws,
         "scores": {e.effect: {"shrink": e.shrink, "p": e.p_value, "consistent": e.consistent,
                               "significant": e.significant} for e in result.effects},
     }
@@ -192,7 +248,8 @@ def _refused(case: Case, exc: StandError, seconds: float, samples: int) -> dict[
         "exact": False, "gap_percent": None, "verdict_gap_percent": None,
         "true_shrink": None, "visible": True, "oracle_shrink": None, "oracle_p": None,
         "seconds": seconds, "samples": samples, "mode": case.mode, "kind": case.kind,
-        "dt_s": case.dt_s, "effects": case.effects, "scores": {}, "error": str(exc),
+        "dt_s": case.dt_s, "effects": case.effects, "snr": case.snr, "draws": case.draws,
+        "scores": {}, "error": str(exc),
     }
 
 
@@ -206,8 +263,12 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     effect_rows = [r for r in rows if r["truth"] != ["none"]]
     shrinks = [r["true_shrink"] for r in effect_rows if r["true_shrink"] is not None]
     visible = [r for r in rows if r.get("visible", True)]
+    measured = [r for r in effect_rows if r.get("snr") is not None]
     return {
         "cases": len(rows),
+        "redrawn_cases": sum(r.get("draws", 1) > 1 for r in rows),
+        "snr_measured_cases": len(measured),
+        "median_snr": float(np.median([r["snr"] for r in measured])) if measured else None,
         "refused": sum(r["verdict"] == "error" for r in rows),
         "visible_cases": len(visible),
         "visible_top1_accuracy": (float(np.mean([r["top1"] for r in visible]))
@@ -239,14 +300,14 @@ def confusion_table(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _run_case_args(args: tuple[int, int, float]) -> dict[str, Any]:
+def _run_case_args(args: tuple[int, int, float, float]) -> dict[str, Any]:
     return run_case(*args)
 
 
-def run_benchmark(cases: int, seed: int, workers: int = 2,
-                  duration_s: float = RUN_DURATION_S) -> list[dict[str, Any]]:
+def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = RUN_DURATION_S,
+                  min_snr: float = MIN_EFFECT_SNR) -> list[dict[str, Any]]:
     """Run ``cases`` blind cases with ``workers`` processes; rows in case order."""
-    jobs = [(index, seed, duration_s) for index in range(cases)]
+    jobs = [(index, seed, duration_s, min_snr) for index in range(cases)]
     if workers <= 1:
         return [_run_case_args(job) for job in jobs]
     import multiprocessing

@@ -37,6 +37,8 @@ GRID_POINTS = 12
 #: Range of backlash half-gaps searched, rad (from two encoder counts at least).
 MIN_GAP_RAD = 1e-4
 MAX_GAP_RAD = 0.3
+#: Coefficients of restitution of the backlash contact searched (0: the load is carried).
+RESTITUTIONS: tuple[float, ...] = (0.0, 0.5)
 
 
 #: What :func:`search` returns when no grid point gives a physical fit.
@@ -91,8 +93,8 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
     if effect == "backlash":
         low = max(2 * train.quant_rad, MIN_GAP_RAD)
         grid = np.geomspace(low, max(MAX_GAP_RAD, 4 * low), GRID_POINTS)
-        return _best([base.merged(ModelSpec(backlash_gap=float(g))) for g in grid], train,
-                     negative="load_accel")
+        return _best([base.merged(ModelSpec(backlash_gap=float(g), backlash_restitution=e))
+                      for g in grid for e in RESTITUTIONS], train, negative="load_accel")
     raise InputError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 
@@ -142,7 +144,10 @@ def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
         return ca["sign"] < 0 and _ratio_ok(ca["sign"], cb["sign"])
     if effect == "stribeck_friction":
         sa, sb = ca["sign"] + ca["stribeck"], cb["sign"] + cb["stribeck"]
-        resolved = all(c["stribeck"] < -STRIBECK_MIN_EXCESS * abs(c["sign"]) for c in (ca, cb))
+        # a Coulomb level Tc >= 0 under a static level Ts >= Tc·(1 + excess) on both
+        # runs: a fit whose "Coulomb" torque pushes the shaft along is not friction
+        resolved = all(c["sign"] <= 0 and c["stribeck"] < -STRIBECK_MIN_EXCESS * abs(c["sign"])
+                       for c in (ca, cb))
         return (sa < 0 and _ratio_ok(sa, sb) and resolved
                 and a.stribeck_ws is not None
                 and b.stribeck_ws is not None

@@ -57,6 +57,10 @@ class ModelSpec:
         (:func:`load_estimate`) gives the load's acceleration (carried along, or
         coasting in the gap, with momentum exchanged at each impact); the regressor
         ``load_accel`` with coefficient ``−J_load/J`` is the torque the load takes.
+    backlash_restitution : float
+        Coefficient of restitution of the backlash contact: 0 carries the load along
+        after an impact, ``e > 0`` lets it rebound (relative speed ``−e`` times that
+        before the impact), as gear teeth do.
     input_weight : float
         How the current between two samples is reconstructed: over the period from
         sample ``n`` to ``n + 1`` it is ``(1 − w)·i[n] + w·i[n + 1]``. ``0.5`` is the
@@ -76,6 +80,7 @@ class ModelSpec:
     cogging_N: int | None = None
     ripple_N: int | None = None
     backlash_gap: float | None = None
+    backlash_restitution: float = 0.0
     input_weight: float = 0.5
     spring: bool = False
 
@@ -106,6 +111,8 @@ class ModelSpec:
             ripple_N=other.ripple_N if other.ripple_N is not None else self.ripple_N,
             backlash_gap=(other.backlash_gap if other.backlash_gap is not None
                           else self.backlash_gap),
+            backlash_restitution=(other.backlash_restitution if other.backlash_gap is not None
+                                  else self.backlash_restitution),
             input_weight=self.input_weight, spring=self.spring,
         )
 
@@ -160,13 +167,15 @@ def sample_current(current: np.ndarray, weight: float) -> np.ndarray:
     return 0.5 * (before + after)
 
 
-def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float,
-                  dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float, dt_s: float,
+                  restitution: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Kinematic estimate of a free load behind a dead zone of ± ``gap`` rad.
 
-    The load coasts at constant speed inside the gap and is carried along (inelastic
-    contact) when the motor reaches either edge. Returns load position (rad) and
-    velocity (rad/s) at each sample.
+    The load coasts at constant speed inside the gap. When the motor reaches either
+    edge the load is struck by the motor (taken as the heavier side, its measured
+    motion given): with ``restitution`` 0 it is carried along (inelastic contact), with
+    ``e > 0`` it rebounds from the motor, ``ω_l ← ω + e·(ω − ω_l)``. Returns load
+    position (rad) and velocity (rad/s) at each sample.
     """
     n = len(theta)
     theta_l = np.empty(n)
@@ -174,15 +183,16 @@ def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float,
     tl, wl = float(theta[0]), float(omega[0])
     th = theta.tolist()
     om = omega.tolist()
+    e = restitution
     for k in range(n):
         tl += wl * dt_s if k else 0.0
         twist = th[k] - tl
         if twist > gap:
             tl = th[k] - gap
-            wl = om[k]
+            wl = om[k] + e * (om[k] - wl) if wl < om[k] else om[k]
         elif twist < -gap:
             tl = th[k] + gap
-            wl = om[k]
+            wl = om[k] + e * (om[k] - wl) if wl > om[k] else om[k]
         theta_l[k] = tl
         omega_l[k] = wl
     return theta_l, omega_l
@@ -195,7 +205,8 @@ def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
         "current": ("current", *current), "one": ("one",), "sign": ("sign",),
         "stribeck": ("stribeck", spec.stribeck_ws), "cog_sin": ("cog_sin", spec.cogging_N),
         "cog_cos": ("cog_cos", spec.cogging_N), "rip_sin": ("rip_sin", spec.ripple_N, *current),
-        "rip_cos": ("rip_cos", spec.ripple_N, *current), "load_accel": ("load", spec.backlash_gap),
+        "rip_cos": ("rip_cos", spec.ripple_N, *current),
+        "load_accel": ("load", spec.backlash_gap, spec.backlash_restitution),
     }[name]
 
 
@@ -219,7 +230,8 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         current = _column(spec, sig, "current")
         return current * (np.sin(angle) if name == "rip_sin" else np.cos(angle))
     if name == "load_accel":
-        _, omega_l = load_estimate(theta, omega, spec.backlash_gap or 0.0, sig.dt_s)
+        _, omega_l = load_estimate(theta, omega, spec.backlash_gap or 0.0, sig.dt_s,
+                                   spec.backlash_restitution)
         return np.asarray(np.gradient(omega_l, sig.dt_s))
     raise InputError(f"unknown input column {name!r}")
 

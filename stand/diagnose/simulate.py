@@ -70,7 +70,7 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     gap = spec.backlash_gap
     ratio = max(-c.get("load_accel", 0.0), 0.0)
     if gap is not None:
-        tl, wl = load_estimate(sig.theta_f, sig.omega_f, gap, dt)
+        tl, wl = load_estimate(sig.theta_f, sig.omega_f, gap, dt, spec.backlash_restitution)
         st.theta_l, st.omega_l = tl[seg.starts].copy(), wl[seg.starts].copy()
     fc = -c.get("sign", 0.0)
     fs = -c.get("stribeck", 0.0)
@@ -112,6 +112,7 @@ def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: boo
         level = fc + fs * np.exp(-((omega / ws) ** 2)) if friction else 0.0
         a_motor = a - level * np.sign(omega)
         side = np.where(side * a_motor > 0, side, 0.0)
+        side = np.where(side * (st.omega_l - omega) > 0, 0.0, side)  # load rebounding away
         scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
     if friction:
         # Friction stepped implicitly (stable for any smoothing): where it can stop the
@@ -132,9 +133,11 @@ def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: boo
         st.omega_l = np.where(carried, st.omega, st.omega_l)
         twist = st.theta - st.theta_l
         hit = np.abs(twist) > gap
-        v = (st.omega + ratio * st.omega_l) / (1.0 + ratio)
-        st.omega = np.where(hit, v, st.omega)
-        st.omega_l = np.where(hit, v, st.omega_l)
+        e = spec.backlash_restitution  # impact of two bodies: momentum kept, relative
+        v = (st.omega + ratio * st.omega_l) / (1.0 + ratio)  # speed reversed times e
+        rel = st.omega - st.omega_l
+        st.omega = np.where(hit, v - e * ratio * rel / (1.0 + ratio), st.omega)
+        st.omega_l = np.where(hit, v + e * rel / (1.0 + ratio), st.omega_l)
         st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
 
 

@@ -15,7 +15,13 @@ import json
 import sys
 import time
 
-from stand.diagnose.benchmark import confusion_table, run_benchmark, summarize_cases, timing_case
+from stand.diagnose.benchmark import (
+    MIN_EFFECT_SNR,
+    confusion_table,
+    run_benchmark,
+    summarize_cases,
+    timing_case,
+)
 
 
 def _percent(value: float | None) -> str:
@@ -27,10 +33,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cases", type=int, default=200)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--min-snr", type=float, default=MIN_EFFECT_SNR,
+                        help="least SNR of a planted effect on HOLDOUT (weaker draws are drawn "
+                        "again; 0 keeps every first draw, effects below the noise included)")
     parser.add_argument("--rows", help="write every case as JSON lines to this file")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    rows = run_benchmark(args.cases, args.seed, args.workers)
+    rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr)
     wall = time.perf_counter() - start
     summary = summarize_cases(rows)
     timing = timing_case()
@@ -40,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
                 out.write(json.dumps(row) + "\n")
     print(confusion_table(summary))
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
+    print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
+          f"stand.diagnose.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
+          f"{summary['median_snr'] if summary['median_snr'] is None else round(summary['median_snr'], 2)}")
     if summary["refused"]:
         print(f"cases the engine refused (counted wrong): {summary['refused']}")
     print(f"top-1 accuracy {_percent(summary['top1_accuracy'])}  "
