@@ -201,6 +201,7 @@ def params(effect: str, model: FittedModel, kt: float | None) -> dict[str, float
         out["k"] = spec.delay
     elif effect == "backlash":
         out["gap"] = spec.backlash_gap
+        out["restitution"] = spec.backlash_restitution
         ratio = max(-c["load_accel"], 0.0)
         out["J_load_over_J"] = ratio
         if kt is not None:

@@ -1,0 +1,71 @@
+"""The benchmark's SNR of a planted effect (true plant, answer-key side only), the
+redraw of cases below it, and the physical checks that the SNR-drawn benchmark leans on:
+a rebounding backlash load and a Stribeck fit that must be friction."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stand.diagnose.benchmark import MIN_EFFECT_SNR, draw_case
+from stand.diagnose.candidates import agree
+from stand.diagnose.model import FittedModel, ModelSpec, load_estimate
+from stand.diagnose.snr import effect_snr
+from tests.unit.test_diagnose_effects import MOTOR, stand_runs
+
+
+def _snr(effects: dict[str, dict[str, float]]) -> float:
+    with_effect, _ = stand_runs(effects, seed=3)
+    without, _ = stand_runs({}, seed=3)
+    J_with = MOTOR.J + effects.get("backlash", {}).get("J_load", 0.0)
+    return effect_snr(with_effect, without, MOTOR.J, J_with, MOTOR.D, MOTOR.Kt, 0.1)
+
+
+def test_clear_effect_is_far_above_the_noise_and_a_tiny_one_below() -> None:
+    assert _snr({"coulomb_friction": {"Tc": 0.004}}) > 5.0
+    assert _snr({"cogging": {"Tcog": 0.003, "N": 12, "phi": 0.5}}) > 2.0
+    # 2e-6 N·m: 0.4 % of the current noise's torque (5e-4 N·m)
+    assert _snr({"coulomb_friction": {"Tc": 2e-6}}) < 0.3
+
+
+def test_the_same_run_has_no_effect() -> None:
+    run, _ = stand_runs({}, seed=3)
+    assert effect_snr(run, run, MOTOR.J, MOTOR.J, MOTOR.D, MOTOR.Kt, 0.1) == 0.0
+
+
+def test_weak_draws_are_drawn_again_until_they_show() -> None:
+    # case 139 of seed 1: its first draw (Coulomb friction) is below the noise
+    first = draw_case(139, 1, min_snr=0.0)
+    case = draw_case(139, 1)
+    assert first.draws == 1 and first.snr is None
+    assert case.truth == first.truth == ["coulomb_friction"]
+    assert case.draws > 1
+    assert case.snr is not None and case.snr >= MIN_EFFECT_SNR
+    assert case.effects != first.effects
+
+
+def test_backlash_load_rebounds_with_the_restitution() -> None:
+    dt, speed, gap = 1e-3, 2.0, 0.01
+    theta = speed * dt * np.arange(40)
+    omega = np.r_[0.0, np.full(39, speed)]  # the load starts at rest where the motor is
+    _, carried = load_estimate(theta, omega, gap, dt, restitution=0.0)
+    _, rebound = load_estimate(theta, omega, gap, dt, restitution=0.5)
+    hit = int(np.argmax(carried > 0))
+    assert hit == int(np.argmax(rebound > 0)) > 1  # struck once the motor closes the gap
+    assert carried[hit] == pytest.approx(speed)  # carried along
+    assert rebound[hit] == pytest.approx(1.5 * speed)  # relative speed reversed times 0.5
+
+
+def _model(sign: float, stribeck: float) -> FittedModel:
+    return FittedModel(spec=ModelSpec(stribeck_ws=5.0), c_theta=0.0, c_omega=-1.0,
+                       coef={"current": 100.0, "sign": sign, "stribeck": stribeck},
+                       residual_rms=0.0, condition_number=1.0, samples=1000)
+
+
+def test_stribeck_needs_a_coulomb_level_that_opposes_motion() -> None:
+    physical = _model(sign=-10.0, stribeck=-8.0)
+    assert agree("stribeck_friction", physical, physical)
+    # a static level above the sliding one, but a "Coulomb" torque that pushes along:
+    # a speed-dependent torque of some other cause, not friction
+    pushing = _model(sign=+10.0, stribeck=-30.0)
+    assert not agree("stribeck_friction", pushing, pushing)
