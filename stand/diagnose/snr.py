@@ -58,8 +58,9 @@ def effect_snr(with_effect: Run, without_effect: Run, J: float, J_with: float, D
     """SNR of the effect that makes ``with_effect`` differ from ``without_effect`` (the
     same command, sensors and seed). ``J_with`` is the rigid inertia of the stand with
     the effect (``J`` plus a backlash load), ``J`` the motor's."""
-    weight = min(WEIGHTS, key=lambda w: nominal_gap(without_effect, J, D, Kt, horizon_s, w))
-    g0 = nominal_gap(without_effect, J, D, Kt, horizon_s, weight)
+    noise_gaps = {w: nominal_gap(without_effect, J, D, Kt, horizon_s, w) for w in WEIGHTS}
+    weight = min(noise_gaps, key=noise_gaps.__getitem__)
+    g0 = noise_gaps[weight]
     g1 = nominal_gap(with_effect, J_with, D, Kt, horizon_s, weight)
     if g0 == 0.0:
         return math.inf if g1 > 0 else 0.0

@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
     print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
           f"stand.diagnose.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
-          f"{summary['median_snr'] if summary['median_snr'] is None else round(summary['median_snr'], 2)}")
+          f"{'n/a' if summary['median_snr'] is None else format(summary['median_snr'], '.2f')}")
     if summary["refused"]:
         print(f"cases the engine refused (counted wrong): {summary['refused']}")
     print(f"top-1 accuracy {_percent(summary['top1_accuracy'])}  "
