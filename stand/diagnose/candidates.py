@@ -116,6 +116,11 @@ def _phase(model: FittedModel, prefix: str) -> tuple[float, float]:
 DELAY_TOLERANCE_SAMPLES = 1
 #: Largest ratio of an effect's size fitted on TRAIN and on HOLDOUT that still agrees.
 AGREE_RATIO = 3.0
+#: Largest difference of the phases of a cogging or ripple order fitted on TRAIN and on
+#: HOLDOUT that still agrees, rad. Both are fixed to the rotor, so runs that share the
+#: encoder's zero (as runs recorded from the drive's position actual value do) find the
+#: same phase; a coincidence of one run has a phase at random.
+PHASE_TOLERANCE_RAD = math.pi / 6
 
 
 #: Smallest static excess ``(Ts − Tc)/Tc`` that makes friction Stribeck rather than
@@ -133,7 +138,8 @@ def _ratio_ok(a: float, b: float, limit: float = AGREE_RATIO) -> bool:
 def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
     """Whether ``effect`` fitted on two independent runs is the same effect: the same
     order or delay, and sizes (and grid parameters) of the same sign within
-    ``AGREE_RATIO``. A real effect is found again; one that fits a coincidence of TRAIN
+    ``AGREE_RATIO``; cogging and ripple also in the same phase (the runs must share the
+    encoder's zero). A real effect is found again; one that fits a coincidence of TRAIN
     is not. Stribeck friction also needs a static excess of at least
     ``STRIBECK_MIN_EXCESS`` on both runs."""
     a, b = first.spec, second.spec
@@ -161,7 +167,9 @@ def agree(effect: str, first: FittedModel, second: FittedModel) -> bool:
         prefix = "cog" if effect == "cogging" else "rip"
         order_a = a.cogging_N if effect == "cogging" else a.ripple_N
         order_b = b.cogging_N if effect == "cogging" else b.ripple_N
-        size_a, size_b = _phase(first, prefix)[0], _phase(second, prefix)[0]
+        (size_a, phase_a), (size_b, phase_b) = _phase(first, prefix), _phase(second, prefix)
+        if abs(math.remainder(phase_a - phase_b, 2 * math.pi)) > PHASE_TOLERANCE_RAD:
+            return False
         if effect == "torque_ripple":  # |ε| < 1: the torque keeps the sign of the current
             size_a, size_b = size_a / ca["current"], size_b / cb["current"]
             if not (0 < size_a < 1 and 0 < size_b < 1):

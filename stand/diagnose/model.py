@@ -159,12 +159,50 @@ def interval_current(current: np.ndarray, weight: float) -> np.ndarray:
     return (1.0 - weight) * current + weight * following
 
 
+#: Weights of the four sample periods around a sample (from two before to two after)
+#: in the acceleration estimate: the second central difference over ±2 samples (the
+#: central difference of the central difference) is the mean of the true acceleration
+#: under a triangle of ±2 periods, whose area over those periods is 1/8, 3/8, 3/8, 1/8.
+DIFFERENCE_KERNEL = (0.125, 0.375, 0.375, 0.125)
+
+
+def at_samples(per_interval: np.ndarray) -> np.ndarray:
+    """What a torque held at ``per_interval[n]`` over each period ``n .. n + 1`` gives at
+    the sample instants in the acceleration estimate (:data:`DIFFERENCE_KERNEL`)."""
+    padded = np.concatenate([per_interval[:1], per_interval[:1], per_interval,
+                             per_interval[-1:]])
+    n = len(per_interval)
+    out = np.zeros(n)
+    for k, w in enumerate(DIFFERENCE_KERNEL):
+        out += w * padded[k:k + n]
+    return out
+
+
 def sample_current(current: np.ndarray, weight: float) -> np.ndarray:
-    """Current at each sample instant consistent with :func:`interval_current`: the mean
-    of the periods before and after the sample."""
-    after = interval_current(current, weight)
-    before = np.concatenate([after[:1], after[:-1]])
-    return 0.5 * (before + after)
+    """Current at each sample instant consistent with :func:`interval_current`."""
+    return at_samples(interval_current(current, weight))
+
+
+def periodic_mean(order: int, theta: np.ndarray,
+                  step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Means of ``sin(N·θ)`` and ``cos(N·θ)`` while ``θ`` moves linearly from ``theta``
+    by ``step`` (rad): the value at the midpoint times ``sinc(N·step/2)``.
+
+    A position-periodic torque of order ``N`` turns through ``N·step`` radians within a
+    sample period at speed; its value at the sample instant is then aliased, while its
+    mean over the period is what changes the sampled speed."""
+    middle = order * (theta + 0.5 * step)
+    damping = np.sinc(order * step / (2.0 * np.pi))  # np.sinc(x) = sin(πx)/(πx)
+    return np.sin(middle) * damping, np.cos(middle) * damping
+
+
+def _periodic_column(order: int, sig: Signals, sine: bool) -> np.ndarray:
+    """Mean of ``sin(N·θ)`` (or cos) over the period after each sample, the filtered
+    position taken as moving linearly between samples."""
+    theta = sig.theta_f
+    step = np.concatenate([np.diff(theta), [0.0]])
+    mean_sin, mean_cos = periodic_mean(order, theta, step)
+    return mean_sin if sine else mean_cos
 
 
 def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float, dt_s: float,
@@ -223,12 +261,11 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         ws = spec.stribeck_ws or 1.0
         return velocity_sign(omega, sig) * np.exp(-((omega / ws) ** 2))
     if name in ("cog_sin", "cog_cos"):
-        angle = (spec.cogging_N or 0) * theta
-        return np.sin(angle) if name == "cog_sin" else np.cos(angle)
+        return at_samples(_periodic_column(spec.cogging_N or 0, sig, name == "cog_sin"))
     if name in ("rip_sin", "rip_cos"):
-        angle = (spec.ripple_N or 0) * theta
-        current = _column(spec, sig, "current")
-        return current * (np.sin(angle) if name == "rip_sin" else np.cos(angle))
+        current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+        periodic = _periodic_column(spec.ripple_N or 0, sig, name == "rip_sin")
+        return at_samples(current * periodic)
     if name == "load_accel":
         _, omega_l = load_estimate(theta, omega, spec.backlash_gap or 0.0, sig.dt_s,
                                    spec.backlash_restitution)
@@ -331,5 +368,5 @@ def nominal() -> ModelSpec:
 
 
 __all__ = ["FittedModel", "ModelSpec", "equation_residual", "fit", "fit_residual_batch",
-           "interval_current", "load_estimate", "nominal", "regressors", "shifted",
+           "interval_current", "load_estimate", "nominal", "periodic_mean", "regressors", "shifted",
            "velocity_sign"]

@@ -21,6 +21,7 @@ from stand.diagnose.model import (
     FittedModel,
     interval_current,
     load_estimate,
+    periodic_mean,
     shifted,
 )
 from stand.diagnose.signals import Signals
@@ -98,12 +99,13 @@ def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: boo
     a = model.c_theta * theta + model.c_omega * omega + c["current"] * i
     if spec.offset:
         a = a + c["one"]
+    step = omega * h  # position-periodic torques: their mean over the sub-step
     if spec.cogging_N is not None:
-        angle = spec.cogging_N * theta
-        a = a + c["cog_sin"] * np.sin(angle) + c["cog_cos"] * np.cos(angle)
+        mean_sin, mean_cos = periodic_mean(spec.cogging_N, theta, step)
+        a = a + c["cog_sin"] * mean_sin + c["cog_cos"] * mean_cos
     if spec.ripple_N is not None:
-        angle = spec.ripple_N * theta
-        a = a + i * (c["rip_sin"] * np.sin(angle) + c["rip_cos"] * np.cos(angle))
+        mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
+        a = a + i * (c["rip_sin"] * mean_sin + c["rip_cos"] * mean_cos)
     scale: np.ndarray | float = 1.0
     side = np.zeros_like(theta)
     if gap is not None:

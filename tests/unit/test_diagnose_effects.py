@@ -90,8 +90,25 @@ def test_fitted_parameters_are_physical() -> None:
     result = diagnose(*stand_runs({"cogging": PLANTED["cogging"]}), kt=MOTOR.Kt)
     params = next(e for e in result.effects if e.effect == "cogging").params
     assert params["N"] == 12
-    np.testing.assert_allclose(params["Tcog"], 0.003, rtol=0.25)  # 25 %: filtered out at speed
+    np.testing.assert_allclose(params["Tcog"], 0.003, rtol=0.1)
     assert abs(np.angle(np.exp(1j * (params["phi"] - 0.5)))) < 0.3  # rad
+
+
+@pytest.mark.parametrize(("effect", "planted", "size"), [
+    ("cogging", {"Tcog": 0.003, "N": 30, "phi": 0.5}, "Tcog"),
+    ("torque_ripple", {"eps": 0.1, "N": 24, "phi": 1.0}, "eps"),
+])
+def test_high_orders_come_back_at_full_size(effect: str, planted: dict[str, float],
+                                            size: str) -> None:
+    """At the stand's speed (~120 rad/s RMS) these orders turn through 3-4 rad per
+    sample: their values at the samples are aliased, and only their mean over each
+    period (model.periodic_mean) gives their size (sampled values gave 25-30 % less)."""
+    result = diagnose(*stand_runs({effect: planted}), kt=MOTOR.Kt)
+    assert result.verdict == effect, result.message
+    params = next(e for e in result.effects if e.effect == effect).params
+    assert params["N"] == planted["N"]
+    np.testing.assert_allclose(params[size], planted[size], rtol=0.1)
+    assert abs(np.angle(np.exp(1j * (params["phi"] - planted["phi"])))) < 0.2  # rad
 
 
 def test_backlash_comes_back_as_gap_and_load_inertia() -> None:

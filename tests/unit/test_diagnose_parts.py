@@ -12,6 +12,8 @@ import pytest
 
 from stand.cli import main
 from stand.diagnose import diagnose
+from stand.diagnose.candidates import agree
+from stand.diagnose.model import FittedModel, ModelSpec, periodic_mean
 from stand.diagnose.signals import quantization_step
 from stand.diagnose.significance import paired_improvement
 from stand.runfile import Run, check_columns, write_run
@@ -36,6 +38,50 @@ def test_paired_test_ignores_noise_and_sees_improvement() -> None:
     test = paired_improvement(base, better)
     assert test.significant(7)
     np.testing.assert_allclose(test.shrink, 1 - math.sqrt(0.6), atol=0.02)  # noise of 100 draws
+
+
+def test_paired_test_sees_an_improvement_in_few_segments() -> None:
+    """An effect that shows in a fifth of the segments (cogging at low speed, backlash
+    at reversals) passes on the summed error; one segment's chance gain does not."""
+    rng = np.random.default_rng(5)
+    base = rng.chisquare(20, size=(2, 100))
+    base[:, :20] *= 10.0  # where the effect shows, the nominal model is far off
+    noise = np.exp(rng.normal(0.0, 0.1, size=base.shape))
+    few = base * noise * 1.3  # the others get worse (a fitted term adds noise there)
+    few[:, :20] = base[:, :20] * 0.1
+    test = paired_improvement(base, few)
+    assert test.significant(7) and test.shrink > 0.2, test
+    # a typical segment got worse: the log-ratio tests alone would not pass it
+    assert np.mean(np.log(base / few)) < 0.3
+    one = base * noise
+    one[:, 0] = base[:, 0] * 1e-3
+    assert not paired_improvement(base, one).significant(7)
+
+
+def _cogging_fit(amplitude: float, phase: float) -> FittedModel:
+    coef = {"current": 100.0, "cog_sin": amplitude * math.sin(phase),
+            "cog_cos": amplitude * math.cos(phase)}
+    return FittedModel(spec=ModelSpec(cogging_N=5), c_theta=0.0, c_omega=-1.0, coef=coef,
+                       residual_rms=0.0, condition_number=1.0, samples=1000)
+
+
+def test_cogging_agrees_only_in_phase() -> None:
+    """Cogging is fixed to the rotor: TRAIN and HOLDOUT (same encoder zero) find it in
+    the same phase; an order fitted to a coincidence has its phase at random."""
+    train = _cogging_fit(1.0, 0.3)
+    assert agree("cogging", train, _cogging_fit(1.5, 0.3 + 0.3))
+    assert not agree("cogging", train, _cogging_fit(1.0, 0.3 + 1.0))
+    assert not agree("cogging", train, _cogging_fit(4.0, 0.3))  # size beyond AGREE_RATIO
+
+
+def test_periodic_mean_is_the_mean_over_the_step() -> None:
+    theta = np.array([0.1, 2.0, -1.0])
+    step = np.array([0.0, 0.4, -3.0])
+    mean_sin, mean_cos = periodic_mean(7, theta, step)
+    for k in range(3):
+        path = theta[k] + step[k] * np.linspace(0.0, 1.0, 20001)
+        np.testing.assert_allclose(mean_sin[k], np.mean(np.sin(7 * path)), atol=1e-4)
+        np.testing.assert_allclose(mean_cos[k], np.mean(np.cos(7 * path)), atol=1e-4)
 
 
 def _scaled(run: Run, position: float, current: float) -> Run:
