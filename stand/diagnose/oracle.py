@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stand.diagnose.candidates import EFFECTS
 from stand.diagnose.engine import ANCHOR_HORIZON_S, _Bench, _nominal_spec
 from stand.diagnose.model import (
     EDGE_SAMPLES,
@@ -39,8 +40,9 @@ from stand.diagnose.simulate import simulate
 from stand.physics.parts import MotorParams
 from stand.runfile import Run
 
-#: Number of candidate tests the engine corrects for in its first selection step.
-ENGINE_TESTS = 7
+#: Number of candidate tests the engine corrects for in its first selection step (one
+#: per effect of the vocabulary, as in :func:`stand.diagnose.engine.diagnose`).
+ENGINE_TESTS = len(EFFECTS)
 
 
 @dataclass(frozen=True)
