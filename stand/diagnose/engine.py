@@ -2,8 +2,8 @@
 
 1. Identify the nominal model of seed 000 on TRAIN (Q-matrix, filtered signals).
 2. Simulate it on HOLDOUT from HOLDOUT's measured current, re-anchored to the measured
-   state every ``horizon_s`` (the same segments for every candidate), and compare with
-   HOLDOUT's measured speed: the gap.
+   positions every ``horizon_s`` (the same segments for every candidate;
+   :mod:`.simulate`), and compare with HOLDOUT's measured speed: the gap.
 3. For every effect of the vocabulary, extend the model, pick the effect's
    hyper-parameters and identify it on TRAIN, simulate it on HOLDOUT: its gap, shrink,
    and a paired per-segment test of the improvement (:mod:`.significance`).
@@ -207,7 +207,10 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         effects=scores, verdict=verdict, verdict_gap_percent=final.gap,
         verdict_params={name: candidates.params(name, final.model, kt) for name in chosen},
         nominal=_nominal_dict(base.model, kt),
-        anchoring={"method": "re-anchored to the filtered measured state every horizon_s",
+        anchoring={"method": "re-anchored every horizon_s: filtered position one sample "
+                             "before each segment, speed shot through the next measured "
+                             "positions; simulated speed as the central difference of the "
+                             "simulated position, like the measured speed",
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
         noise_floor_percent=floor, message=message, notes=_notes(tr)), traces

@@ -10,11 +10,9 @@ enter as extra input columns. The fit uses the filtered signals of
 :mod:`stand.diagnose.signals` (equation error); the nonlinear hyper-parameters (delay
 ``k``, order ``N``, Stribeck velocity, backlash gap) are fixed by :class:`ModelSpec`.
 
-Simulation (:func:`simulate`) re-anchors to the measured state at the start of every
-segment of ``horizon`` samples: position from the filtered position, velocity from the
-filtered velocity, the load of a backlash model from the kinematic load estimate. Within
-a segment the model runs free, driven only by the measured current (linearly
-interpolated between samples). The same segments are used for every candidate.
+Simulation (:func:`stand.diagnose.simulate.simulate`) runs a fitted model free over
+segments of HOLDOUT, re-anchored at the start of each, driven only by the measured
+current; the same segments are used for every candidate.
 """
 
 from __future__ import annotations
