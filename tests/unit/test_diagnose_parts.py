@@ -88,8 +88,8 @@ def test_periodic_mean_is_the_mean_over_the_step() -> None:
 def test_exact_model_follows_a_fast_run() -> None:
     """A current that jumps every sample (what a speed loop or a fast command gives):
     the exact model, re-anchored and read out as the measurement is (central
-    difference), follows the measured speed; a low-passed anchor would be off by tens
-    of per cent of the speed at every segment start."""
+    difference), follows the measured speed within 1 %; the low-passed speed as the
+    anchor (the engine before 19f66e7) is 6.5 % off here."""
     dt, gain, damping, n = 1e-3, 2500.0, 5.0, 3000
     current = np.random.default_rng(3).choice([-1.0, 1.0], n)  # held over each period
     decay = math.exp(-damping * dt)
