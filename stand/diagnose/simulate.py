@@ -93,7 +93,7 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
         tl, wl = load_estimate(sig.theta_f, sig.omega_f, spec.backlash_gap, dt,
                                spec.backlash_restitution)
         anchor.theta_l, anchor.omega_l = tl[first].copy(), wl[first].copy()
-    _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first], dt)
+    _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first])
     theta = np.empty((len(first), seg.horizon + 2))
     st = anchor.copy()
     theta[:, 0] = st.theta
@@ -103,13 +103,12 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     return (theta[:, 2:] - theta[:, :-2]) / (2.0 * dt)
 
 
-def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray,
-           dt: float) -> None:
+def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray) -> None:
     """Set ``anchor.omega`` so the model travels ``travel`` (rad) over the sample periods
     of ``drive`` (Newton steps, the slope by a finite difference). Where the model
     barely responds to its start speed (a shaft held by friction), the slope of the
     linear model is used instead."""
-    span = drive.shape[1] * dt
+    span = drive.shape[1] * step.sig.dt_s
     rate = step.model.c_omega
     linear = span if abs(rate) * span < 1e-9 else math.expm1(rate * span) / rate
     delta = max(1e-6, 1e-3 * float(np.quantile(np.abs(step.sig.omega_f), 0.95)))
@@ -152,60 +151,58 @@ class _Stepper:
     def sample(self, st: _State, i: np.ndarray) -> None:
         """Advance ``st`` by one sample period under the current ``i``."""
         for _ in range(self.n_sub):
-            _step(self.model, st, i, self.h, self.friction, self.fc, self.fs, self.ws,
-                  self.smooth, self.gap, self.ratio)
+            self._substep(st, i)
 
-
-def _step(model: FittedModel, st: _State, i: np.ndarray, h: float, friction: bool,
-          fc: float, fs: float, ws: float, smooth: float, gap: float | None,
-          ratio: float) -> None:
-    spec, c = model.spec, model.coef
-    theta, omega = st.theta, st.omega
-    a = model.c_theta * theta + model.c_omega * omega + c["current"] * i
-    if spec.offset:
-        a = a + c["one"]
-    step = omega * h  # position-periodic torques: their mean over the sub-step
-    if spec.cogging_N is not None:
-        mean_sin, mean_cos = periodic_mean(spec.cogging_N, theta, step)
-        a = a + c["cog_sin"] * mean_sin + c["cog_cos"] * mean_cos
-    if spec.ripple_N is not None:
-        mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
-        a = a + i * (c["rip_sin"] * mean_sin + c["rip_cos"] * mean_cos)
-    scale: np.ndarray | float = 1.0
-    side = np.zeros_like(theta)
-    if gap is not None:
-        twist = theta - st.theta_l
-        side = np.where(twist >= gap - 1e-12, 1.0, np.where(twist <= -gap + 1e-12, -1.0, 0.0))
-        level = fc + fs * np.exp(-((omega / ws) ** 2)) if friction else 0.0
-        a_motor = a - level * np.sign(omega)
-        side = np.where(side * a_motor > 0, side, 0.0)
-        side = np.where(side * (st.omega_l - omega) > 0, 0.0, side)  # load rebounding away
-        scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
-    if friction:
-        # Friction stepped implicitly (stable for any smoothing): where it can stop the
-        # shaft within the step the speed goes to the linear regime of tanh near zero.
-        level = fc + fs * np.exp(-((omega / ws) ** 2))
-        free = omega + h * scale * a
-        stop = h * scale * np.maximum(level, 0.0)
-        new = np.where(np.abs(free) > stop, free - stop * np.sign(free), free / (1.0 + stop / smooth))
-        new = np.where(level < 0, free - h * scale * level * np.tanh(omega / smooth), new)
-    else:
-        new = omega + h * scale * a
-    st.theta = theta + 0.5 * h * (omega + new)
-    st.omega = new
-    if gap is not None:
-        carried = side != 0
-        free_l = st.theta_l + h * st.omega_l
-        st.theta_l = np.where(carried, st.theta - side * gap, free_l)
-        st.omega_l = np.where(carried, st.omega, st.omega_l)
-        twist = st.theta - st.theta_l
-        hit = np.abs(twist) > gap
-        e = spec.backlash_restitution  # impact of two bodies: momentum kept, relative
-        v = (st.omega + ratio * st.omega_l) / (1.0 + ratio)  # speed reversed times e
-        rel = st.omega - st.omega_l
-        st.omega = np.where(hit, v - e * ratio * rel / (1.0 + ratio), st.omega)
-        st.omega_l = np.where(hit, v + e * rel / (1.0 + ratio), st.omega_l)
-        st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
+    def _substep(self, st: _State, i: np.ndarray) -> None:
+        spec, c, h, gap, ratio = self.model.spec, self.model.coef, self.h, self.gap, self.ratio
+        theta, omega = st.theta, st.omega
+        a = self.model.c_theta * theta + self.model.c_omega * omega + c["current"] * i
+        if spec.offset:
+            a = a + c["one"]
+        step = omega * h  # position-periodic torques: their mean over the sub-step
+        if spec.cogging_N is not None:
+            mean_sin, mean_cos = periodic_mean(spec.cogging_N, theta, step)
+            a = a + c["cog_sin"] * mean_sin + c["cog_cos"] * mean_cos
+        if spec.ripple_N is not None:
+            mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
+            a = a + i * (c["rip_sin"] * mean_sin + c["rip_cos"] * mean_cos)
+        level = (self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.friction
+                 else 0.0)
+        scale: np.ndarray | float = 1.0
+        side = np.zeros_like(theta)
+        if gap is not None:
+            twist = theta - st.theta_l
+            side = np.where(twist >= gap - 1e-12, 1.0, np.where(twist <= -gap + 1e-12, -1.0, 0.0))
+            a_motor = a - level * np.sign(omega)
+            side = np.where(side * a_motor > 0, side, 0.0)
+            side = np.where(side * (st.omega_l - omega) > 0, 0.0, side)  # load rebounding away
+            scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
+        if self.friction:
+            # Friction stepped implicitly (stable for any smoothing): where it can stop the
+            # shaft within the step the speed goes to the linear regime of tanh near zero.
+            smooth = self.smooth
+            free = omega + h * scale * a
+            stop = h * scale * np.maximum(level, 0.0)
+            new = np.where(np.abs(free) > stop, free - stop * np.sign(free),
+                           free / (1.0 + stop / smooth))
+            new = np.where(level < 0, free - h * scale * level * np.tanh(omega / smooth), new)
+        else:
+            new = omega + h * scale * a
+        st.theta = theta + 0.5 * h * (omega + new)
+        st.omega = new
+        if gap is not None:
+            carried = side != 0
+            free_l = st.theta_l + h * st.omega_l
+            st.theta_l = np.where(carried, st.theta - side * gap, free_l)
+            st.omega_l = np.where(carried, st.omega, st.omega_l)
+            twist = st.theta - st.theta_l
+            hit = np.abs(twist) > gap
+            e = spec.backlash_restitution  # impact of two bodies: momentum kept, relative
+            v = (st.omega + ratio * st.omega_l) / (1.0 + ratio)  # speed reversed times e
+            rel = st.omega - st.omega_l
+            st.omega = np.where(hit, v - e * ratio * rel / (1.0 + ratio), st.omega)
+            st.omega_l = np.where(hit, v + e * rel / (1.0 + ratio), st.omega_l)
+            st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
 
 
 def friction_smoothing(sig: Signals) -> float:

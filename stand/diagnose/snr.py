@@ -3,9 +3,10 @@
 How much an effect shows on a stand is a property of the stand, not of any diagnosis:
 this module measures it with the TRUE plant. The exact nominal model (the true ``J``
 (plus a backlash load), ``D`` and ``Kt``, no effect) is driven by the run's measured
-current and re-anchored to the TRUE shaft speed every ``horizon_s``, as the diagnosis
-re-anchors its models; its error against the measured speed (central difference of the
-measured position) is the gap a perfect nominal model leaves. On the same command,
+current and re-anchored to the TRUE shaft speed every ``horizon_s`` (the diagnosis
+re-anchors on the same horizon, from the measured positions: it has no true speed);
+its error against the measured speed (central difference of the measured position) is
+the gap a perfect nominal model leaves. On the same command,
 sensor noise and seed without the effect, that gap is noise and quantization alone
 (``g0``); with the effect it is ``g1``. The effect's SNR is the RMS the effect adds over
 the noise, relative to the noise::
