@@ -7,7 +7,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import can
@@ -89,6 +89,12 @@ class BusConfig:
             known = ", ".join(sorted(set(can.VALID_INTERFACES) - set(FORBIDDEN_INTERFACES)))
             raise InputError(f"bus interface must be one of {known}, not {self.interface!r}")
 
+    def with_default(self, option: str, value: Any) -> BusConfig:
+        """This config, with ``options[option] = value`` unless ``option`` is set already."""
+        if option in self.options:
+            return self
+        return replace(self, options={**self.options, option: value})
+
     @classmethod
     def from_settings(cls) -> BusConfig:
         """The bus named by the settings (``STAND_BUS_INTERFACE`` etc.)."""
@@ -129,9 +135,8 @@ def connect_network(config: BusConfig, network: canopen.Network | None = None,
     (:func:`receive_filters`), unless ``config.options`` sets ``can_filters`` itself.
     """
     network = network if network is not None else canopen.Network()
-    if role is not None and "can_filters" not in config.options:
-        config = BusConfig(config.interface, config.channel, config.bitrate,
-                           {**config.options, "can_filters": receive_filters(role)})
+    if role is not None:
+        config = config.with_default("can_filters", receive_filters(role))
     network.bus = open_bus(config)
     network.listeners = [StandardFrameListener(network)]
     network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S

@@ -104,10 +104,9 @@ class Master:
         #: order with the answers); elsewhere from the time ``send`` returned.
         self.sync_echo = self.config.interface in ECHO_INTERFACES
         bus_config = self.config
-        if self.sync_echo and "receive_own_messages" not in bus_config.options:
+        if self.sync_echo:
             # The master's receive filters pass 0x080, so of its own frames only SYNC returns.
-            bus_config = BusConfig(bus_config.interface, bus_config.channel, bus_config.bitrate,
-                                   {**bus_config.options, "receive_own_messages": True})
+            bus_config = bus_config.with_default("receive_own_messages", True)
         self.heartbeat_period_s = heartbeat_period_s
         self.sdo_timeout_s = sdo_timeout_s
         self.pdo_timeout_s = pdo_timeout_s
