@@ -222,9 +222,11 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     if not significant:
         return [], base
     first = min(significant, key=lambda n: singles[n].gap)
-    if first == "coulomb_friction" and "stribeck_friction" in significant:
+    if (first == "coulomb_friction" and "stribeck_friction" in significant
+            and not _improvement(singles["stribeck_friction"], singles[first]).significant(1)):
         # Stribeck nests Coulomb friction; it is significant only when both runs resolve
-        # its static excess (candidates.agree), which is what makes it count
+        # its static excess (candidates.agree), which is what makes it count, unless
+        # Coulomb friction alone simulates HOLDOUT significantly better
         first = "stribeck_friction"
     chosen, current = [first], singles[first]
     while len(chosen) < max_effects:

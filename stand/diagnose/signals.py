@@ -99,11 +99,37 @@ def quantization_step(theta: np.ndarray) -> float:
     smallest = float(np.min(steps))
     offsets = theta - theta[0]
     for divisor in range(1, MAX_COUNT_DIVISOR + 1):
-        step = smallest / divisor
+        step = _refined(offsets, smallest / divisor)
         ratio = offsets / step
         if np.mean(np.abs(ratio - np.round(ratio)) < GRID_TOLERANCE) > 0.95:
             return step
     return 0.0
+
+
+#: Counts around the first position over which a step read off two positions is first
+#: refined (the range then doubles until it covers the run).
+REFINE_COUNTS = 64
+
+
+def _refined(offsets: np.ndarray, step: float) -> float:
+    """The grid step that fits the positions best, from a first guess ``step``.
+
+    A step read off the difference of two positions carries their rounding (a file
+    stores about nine significant digits, 5e-8 rad at 30 rad); over a long run at speed
+    (10⁴–10⁶ counts) that error adds up to whole counts and no position seems to lie on
+    the grid. The step is therefore fitted by least squares to the positions within
+    ``REFINE_COUNTS`` counts of the first, where the count of each is unambiguous, and
+    the range doubles until it covers the run."""
+    top = float(np.max(np.abs(offsets)))
+    reach = REFINE_COUNTS * step
+    while True:
+        near = offsets[np.abs(offsets) <= reach]
+        counts = np.round(near / step)
+        if np.any(counts):
+            step = float(np.dot(counts, near) / np.dot(counts, counts))
+        if reach >= top:
+            return step
+        reach *= 2.0
 
 
 def prepare(run: Run) -> Signals:
