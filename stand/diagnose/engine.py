@@ -11,7 +11,8 @@
    again (same order or delay, similar size: :func:`.candidates.agree`).
 4. Take the significant candidate with the smallest gap (Stribeck friction, which
    nests Coulomb friction, wins over it when it is significant itself, i.e. when both
-   runs resolve its static excess); then
+   runs resolve its static excess, unless Coulomb friction simulates HOLDOUT
+   significantly better); then
    add further effects greedily while an addition still improves HOLDOUT significantly.
 """
 

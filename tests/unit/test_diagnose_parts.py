@@ -30,7 +30,6 @@ def test_quantization_step_is_the_encoder_count() -> None:
     assert quantization_step(np.cumsum(rng.normal(0.0, 0.05, 5000))) == 0.0
 
 
-
 def test_quantization_step_of_a_long_fast_run_read_from_a_file() -> None:
     """Positions stored with nine significant digits (as run files are) over 97 500
     counts: a step read off one pair of positions is off by their rounding, which adds up
@@ -40,6 +39,7 @@ def test_quantization_step_of_a_long_fast_run_read_from_a_file() -> None:
     counts = np.cumsum(np.random.default_rng(5).integers(0, 40, 5000))
     theta = np.array([float(f"{c * count:.9g}") for c in counts])
     np.testing.assert_allclose(quantization_step(theta), count, rtol=1e-9)
+
 
 def test_paired_test_ignores_noise_and_sees_improvement() -> None:
     rng = np.random.default_rng(4)
