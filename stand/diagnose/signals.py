@@ -32,6 +32,9 @@ MIN_DIAGNOSE_SAMPLES = 200
 MAX_COUNT_DIVISOR = 64
 #: Largest distance from the grid, in counts, of a position that lies on it.
 GRID_TOLERANCE = 0.05
+#: Counts around the first position over which a step read off two positions is first
+#: refined (the range then doubles until it covers the run).
+REFINE_COUNTS = 64
 
 
 @dataclass(frozen=True)
@@ -104,11 +107,6 @@ def quantization_step(theta: np.ndarray) -> float:
         if np.mean(np.abs(ratio - np.round(ratio)) < GRID_TOLERANCE) > 0.95:
             return step
     return 0.0
-
-
-#: Counts around the first position over which a step read off two positions is first
-#: refined (the range then doubles until it covers the run).
-REFINE_COUNTS = 64
 
 
 def _refined(offsets: np.ndarray, step: float) -> float:

@@ -94,12 +94,7 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
                                spec.backlash_restitution)
         anchor.theta_l, anchor.omega_l = tl[first].copy(), wl[first].copy()
     _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first])
-    theta = np.empty((len(first), seg.horizon + 2))
-    st = anchor.copy()
-    theta[:, 0] = st.theta
-    for j in range(seg.horizon + 1):
-        step.sample(st, drive[:, j])
-        theta[:, j + 1] = st.theta
+    theta = _positions(step, anchor, drive)
     return (theta[:, 2:] - theta[:, :-2]) / (2.0 * dt)
 
 
@@ -113,20 +108,24 @@ def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray
     linear = span if abs(rate) * span < 1e-9 else math.expm1(rate * span) / rate
     delta = max(1e-6, 1e-3 * float(np.quantile(np.abs(step.sig.omega_f), 0.95)))
     for _ in range(SHOOTING_STEPS):
-        reach = _travel(step, anchor, drive)
+        reach = _positions(step, anchor, drive)[:, -1] - anchor.theta
         nudged = anchor.copy()
         nudged.omega = anchor.omega + delta
-        slope = (_travel(step, nudged, drive) - reach) / delta
+        slope = (_positions(step, nudged, drive)[:, -1] - nudged.theta - reach) / delta
         slope = np.where(slope > 0.1 * linear, slope, linear)
         anchor.omega = anchor.omega + (travel - reach) / slope
 
 
-def _travel(step: _Stepper, anchor: _State, drive: np.ndarray) -> np.ndarray:
-    """How far the model turns from ``anchor`` over the sample periods of ``drive``."""
+def _positions(step: _Stepper, anchor: _State, drive: np.ndarray) -> np.ndarray:
+    """Positions of the model from ``anchor`` (column 0) at the end of each sample period
+    of ``drive``, shape (segments, periods + 1), rad."""
     st = anchor.copy()
+    theta = np.empty((len(st.theta), drive.shape[1] + 1))
+    theta[:, 0] = st.theta
     for j in range(drive.shape[1]):
         step.sample(st, drive[:, j])
-    return st.theta - anchor.theta
+        theta[:, j + 1] = st.theta
+    return theta
 
 
 class _Stepper:
