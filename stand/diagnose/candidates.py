@@ -39,6 +39,11 @@ MIN_GAP_RAD = 1e-4
 MAX_GAP_RAD = 0.3
 #: Coefficients of restitution of the backlash contact searched (0: the load is carried).
 RESTITUTIONS: tuple[float, ...] = (0.0, 0.5)
+#: The delay and backlash searches go one grid step beyond the largest value they report
+#: (``MAX_DELAY_SAMPLES``, ``MAX_GAP_RAD``): a best fit there is an optimum the search
+#: did not bracket (the equation error still falls as the delay or gap grows: a fit of
+#: something else, such as the nominal model's own error on a speed loop, not a value
+#: the run resolves), and the search returns :data:`NO_FIT`.
 
 
 #: What :func:`search` returns when no grid point gives a physical fit.
@@ -77,8 +82,9 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
     if effect == "current_offset":
         return base.merged(ModelSpec(offset=True))
     if effect == "delay":
-        return _best([base.merged(ModelSpec(delay=k)) for k in range(1, MAX_DELAY_SAMPLES + 1)],
+        best = _best([base.merged(ModelSpec(delay=k)) for k in range(1, MAX_DELAY_SAMPLES + 2)],
                      train)
+        return NO_FIT if (best.delay or 0) > MAX_DELAY_SAMPLES else best
     if effect in ("cogging", "torque_ripple"):
         orders = _orders(train)
         if not orders:
@@ -92,9 +98,12 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
         return _best([base.merged(ModelSpec(stribeck_ws=float(w))) for w in grid], train)
     if effect == "backlash":
         low = max(2 * train.quant_rad, MIN_GAP_RAD)
-        grid = np.geomspace(low, max(MAX_GAP_RAD, 4 * low), GRID_POINTS)
-        return _best([base.merged(ModelSpec(backlash_gap=float(g), backlash_restitution=e))
+        high = max(MAX_GAP_RAD, 4 * low)
+        grid = np.geomspace(low, high, GRID_POINTS)
+        grid = np.append(grid, grid[-1] ** 2 / grid[-2])  # one step beyond: bracketed?
+        best = _best([base.merged(ModelSpec(backlash_gap=float(g), backlash_restitution=e))
                       for g in grid for e in RESTITUTIONS], train, negative="load_accel")
+        return NO_FIT if (best.backlash_gap or 0.0) > high else best
     raise InputError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 

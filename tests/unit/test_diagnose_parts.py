@@ -6,13 +6,14 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from stand.cli import main
 from stand.diagnose import diagnose
-from stand.diagnose.candidates import agree
+from stand.diagnose.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
 from stand.diagnose.model import FittedModel, ModelSpec, periodic_mean
 from stand.diagnose.signals import prepare, quantization_step
 from stand.diagnose.significance import paired_improvement
@@ -68,6 +69,22 @@ def test_paired_test_sees_an_improvement_in_few_segments() -> None:
     one = base * noise
     one[:, 0] = base[:, 0] * 1e-3
     assert not paired_improvement(base, one).significant(7)
+
+
+@pytest.mark.parametrize(("effect", "planted", "found"), [
+    ("delay", {"k": MAX_DELAY_SAMPLES}, lambda spec: spec.delay == MAX_DELAY_SAMPLES),
+    ("delay", {"k": MAX_DELAY_SAMPLES + 2}, lambda spec: spec == NO_FIT),
+    ("backlash", {"gap": 0.2, "J_load": 2e-5},
+     lambda spec: spec.backlash_gap == pytest.approx(0.2, rel=0.2)),
+    ("backlash", {"gap": 3 * MAX_GAP_RAD, "J_load": 2e-5}, lambda spec: spec == NO_FIT),
+])
+def test_search_reports_only_a_bracketed_optimum(effect: str, planted: dict[str, float],
+                                                 found: Any) -> None:
+    """The delay and backlash searches find values up to the top of their range; a best
+    fit beyond it (the equation error still falling at the end of the grid) is no fit."""
+    train, _ = stand_runs({effect: planted})
+    spec = search(effect, ModelSpec(input_weight=0.5), prepare(train))
+    assert found(spec), spec
 
 
 def _cogging_fit(amplitude: float, phase: float) -> FittedModel:
