@@ -12,15 +12,20 @@ import numpy as np
 import pytest
 
 from stand.cli import main
-from stand.diagnose import diagnose
+from stand.diagnose import diagnose, engine
 from stand.diagnose.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
 from stand.diagnose.model import FittedModel, ModelSpec, periodic_mean
 from stand.diagnose.signals import prepare, quantization_step
 from stand.diagnose.significance import paired_improvement
 from stand.diagnose.simulate import segments, simulate
+from stand.excitation import excitation
+from stand.physics.effects import Effects
+from stand.physics.parts import DriveParams
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, check_columns, write_run
 from tests.conftest import REAL_DATA
-from tests.unit.test_diagnose_effects import MOTOR, stand_runs
+from tests.unit.test_diagnose_effects import MOTOR, SENSORS, stand_runs
 
 
 def test_quantization_step_is_the_encoder_count() -> None:
@@ -85,6 +90,24 @@ def test_search_reports_only_a_bracketed_optimum(effect: str, planted: dict[str,
     train, _ = stand_runs({effect: planted})
     spec = search(effect, ModelSpec(input_weight=0.5), prepare(train))
     assert found(spec), spec
+
+
+def test_input_weight_is_refined_between_grid_points(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A current loop that settles within 0.2 ms, sampled every 2.5 ms: the current over
+    a period is nearly the next sample's, between the weight grid's 0.875 and 1.0. The
+    refined weight simulates HOLDOUT closer than the best grid weight."""
+    dt = 2.5e-3
+    runs = []
+    for k in range(2):
+        plant = MotorPlant(MOTOR, DriveParams(mode="current"), SENSORS, Effects(), seed=1 + k)
+        command = excitation("prbs", int(6.0 / dt), dt, 0.0, 0.5, 20 + 5 * k, seed=1 + k)
+        runs.append(simulate_motor(plant, "current", command, dt))
+    refined = diagnose(*runs)
+    monkeypatch.setattr(engine, "WEIGHT_REFINEMENTS", 0)
+    coarse = diagnose(*runs)
+    assert refined.nominal["input_weight"] not in engine.INPUT_WEIGHTS
+    assert refined.gap_percent < 0.95 * coarse.gap_percent, (refined.gap_percent,
+                                                             coarse.gap_percent)
 
 
 def _cogging_fit(amplitude: float, phase: float) -> FittedModel:
