@@ -50,15 +50,15 @@ RESTITUTIONS: tuple[float, ...] = (0.0, 0.5)
 NO_FIT = ModelSpec(input_weight=-1.0)
 
 
-def _best(specs: list[ModelSpec], train: Signals, negative: str | None = None) -> ModelSpec:
+def _best(specs: list[ModelSpec], train: Signals, negative: tuple[str, ...] = ()) -> ModelSpec:
     """The spec of smallest equation-error RMS on ``train``; with ``negative``, only among
-    fits whose coefficient of that column is negative (the physical sign)."""
+    fits whose coefficients of those columns are negative (the physical sign)."""
     rms, coef = fit_residual_batch(specs, train)
-    if negative is not None:
-        column = specs[0].names().index(negative)
+    for name in negative:
+        column = specs[0].names().index(name)
         rms = np.where(coef[:, column] < 0, rms, np.inf)
-        if not np.isfinite(rms).any():
-            return NO_FIT
+    if not np.isfinite(rms).any():
+        return NO_FIT
     return specs[int(np.argmin(rms))]
 
 
@@ -95,14 +95,15 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
     top = float(np.quantile(np.abs(train.omega_f), 0.95))
     if effect == "stribeck_friction":
         grid = top * np.geomspace(0.01, 0.5, GRID_POINTS)
-        return _best([base.merged(ModelSpec(stribeck_ws=float(w))) for w in grid], train)
+        return _best([base.merged(ModelSpec(stribeck_ws=float(w))) for w in grid], train,
+                     negative=("stribeck",))
     if effect == "backlash":
         low = max(2 * train.quant_rad, MIN_GAP_RAD)
         high = max(MAX_GAP_RAD, 4 * low)
         grid = np.geomspace(low, high, GRID_POINTS)
         grid = np.append(grid, grid[-1] ** 2 / grid[-2])  # one step beyond: bracketed?
         best = _best([base.merged(ModelSpec(backlash_gap=float(g), backlash_restitution=e))
-                      for g in grid for e in RESTITUTIONS], train, negative="load_accel")
+                      for g in grid for e in RESTITUTIONS], train, negative=("load_accel",))
         return NO_FIT if (best.backlash_gap or 0.0) > high else best
     raise InputError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 

@@ -14,7 +14,7 @@ import pytest
 from stand.cli import main
 from stand.diagnose import diagnose, engine
 from stand.diagnose.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
-from stand.diagnose.model import FittedModel, ModelSpec, periodic_mean
+from stand.diagnose.model import FittedModel, ModelSpec, fit, periodic_mean
 from stand.diagnose.signals import prepare, quantization_step
 from stand.diagnose.significance import paired_improvement
 from stand.diagnose.simulate import segments, simulate
@@ -25,7 +25,7 @@ from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, check_columns, write_run
 from tests.conftest import REAL_DATA
-from tests.unit.test_diagnose_effects import MOTOR, SENSORS, stand_runs
+from tests.unit.test_diagnose_effects import MOTOR, PLANTED, SENSORS, stand_runs
 
 
 def test_quantization_step_is_the_encoder_count() -> None:
@@ -90,6 +90,20 @@ def test_search_reports_only_a_bracketed_optimum(effect: str, planted: dict[str,
     train, _ = stand_runs({effect: planted})
     spec = search(effect, ModelSpec(input_weight=0.5), prepare(train))
     assert found(spec), spec
+
+
+@pytest.mark.parametrize("effect", ["coulomb_friction", "stribeck_friction"])
+def test_stribeck_search_keeps_the_static_level_above_the_coulomb_level(effect: str) -> None:
+    """The Stribeck velocity is picked only among fits whose static level is above their
+    Coulomb level. On this stand with Coulomb friction alone, the smallest equation error
+    of the grid is a fit with the static level below the Coulomb level (a curve in the
+    speed, not Stribeck friction)."""
+    sig = prepare(stand_runs({effect: PLANTED[effect]})[0])
+    spec = search("stribeck_friction", ModelSpec(input_weight=0.5), sig)
+    coef = fit(spec, sig).coef
+    assert coef["stribeck"] < 0 < -coef["sign"], coef
+    if effect == "stribeck_friction":
+        assert spec.stribeck_ws == pytest.approx(PLANTED[effect]["ws"], rel=0.5)
 
 
 def test_input_weight_is_refined_between_grid_points(monkeypatch: pytest.MonkeyPatch) -> None:
