@@ -4,7 +4,9 @@ Each candidate adds regressors to a base model (:class:`~stand.diagnose.model.Mo
 Most are linear in their parameters; the delay ``k``, the order ``N`` of cogging and
 torque ripple, the Stribeck velocity and the backlash gap are picked on TRAIN by the
 smallest equation-error RMS over a grid (the Q-matrix solver, batched where the grid
-keeps the number of columns).
+keeps the number of columns), among fits of physical sign (a static level above the
+Coulomb level, a positive load inertia), and for the delay and the gap only where the
+grid brackets the optimum (:func:`search`).
 
 Parameters come back relative to the torque constant (the current-driven model only
 identifies torques per ``Kt``): ``Tc_over_Kt_A`` etc., in amperes of current that make
@@ -39,11 +41,6 @@ MIN_GAP_RAD = 1e-4
 MAX_GAP_RAD = 0.3
 #: Coefficients of restitution of the backlash contact searched (0: the load is carried).
 RESTITUTIONS: tuple[float, ...] = (0.0, 0.5)
-#: The delay and backlash searches go one grid step beyond the largest value they report
-#: (``MAX_DELAY_SAMPLES``, ``MAX_GAP_RAD``): a best fit there is an optimum the search
-#: did not bracket (the equation error still falls as the delay or gap grows: a fit of
-#: something else, such as the nominal model's own error on a speed loop, not a value
-#: the run resolves), and the search returns :data:`NO_FIT`.
 
 
 #: What :func:`search` returns when no grid point gives a physical fit.
@@ -76,7 +73,14 @@ def _orders(train: Signals) -> list[int]:
 
 
 def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
-    """The model ``base`` plus ``effect``, its hyper-parameters picked on ``train``."""
+    """The model ``base`` plus ``effect``, its hyper-parameters picked on ``train``.
+
+    The delay and backlash searches go one grid step beyond the largest value they
+    report (``MAX_DELAY_SAMPLES``, ``MAX_GAP_RAD``): a best fit there is an optimum the
+    search did not bracket (the equation error still falls as the delay or gap grows:
+    a fit of something else, such as the nominal model's own error on a speed loop, not
+    a value the run resolves), and the search returns :data:`NO_FIT`.
+    """
     if effect == "coulomb_friction":
         return base.merged(ModelSpec(coulomb=True))
     if effect == "current_offset":

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -84,7 +84,7 @@ def test_paired_test_sees_an_improvement_in_few_segments() -> None:
     ("backlash", {"gap": 3 * MAX_GAP_RAD, "J_load": 2e-5}, lambda spec: spec == NO_FIT),
 ])
 def test_search_reports_only_a_bracketed_optimum(effect: str, planted: dict[str, float],
-                                                 found: Any) -> None:
+                                                 found: Callable[[ModelSpec], bool]) -> None:
     """The delay and backlash searches find values up to the top of their range; a best
     fit beyond it (the equation error still falling at the end of the grid) is no fit."""
     train, _ = stand_runs({effect: planted})
