@@ -308,6 +308,11 @@ def _nominal_spec(train: Signals, horizon_s: float, spring: bool) -> ModelSpec:
 
 #: Share of moving samples below which a direction of rotation counts as absent.
 ONE_DIRECTION_SHARE = 0.01
+#: Share of the current's power (mean removed, Hann window) within
+#: ``SINGLE_TONE_BINS`` bins of its strongest frequency above which TRAIN counts as
+#: exciting one frequency only.
+SINGLE_TONE_SHARE = 0.9
+SINGLE_TONE_BINS = 3
 
 
 def _notes(train: Signals) -> list[str]:
@@ -318,7 +323,28 @@ def _notes(train: Signals) -> list[str]:
         notes.append("the shaft turns one way only on TRAIN: coulomb_friction and "
                      "current_offset are the same constant torque there and cannot be told "
                      "apart (record a run that reverses)")
+    tone = _single_tone_hz(train)
+    if tone is not None:
+        notes.append(f"the current on TRAIN is one frequency ({tone:.3g} Hz): a delay of the "
+                     "current cannot be told from Kt/J and D/J there, so delay is not "
+                     "diagnosable (record a run with a broadband command, e.g. PRBS)")
     return notes
+
+
+def _single_tone_hz(train: Signals) -> float | None:
+    """The frequency of TRAIN's current, Hz, when nearly all its power is at one
+    frequency (``SINGLE_TONE_SHARE``); else None."""
+    current = train.current - np.mean(train.current)
+    power = np.abs(np.fft.rfft(current * np.hanning(len(current)))) ** 2
+    power[0] = 0.0
+    total = float(np.sum(power))
+    if total == 0.0:
+        return None
+    peak = int(np.argmax(power))
+    near = float(np.sum(power[max(peak - SINGLE_TONE_BINS, 0):peak + SINGLE_TONE_BINS + 1]))
+    if near < SINGLE_TONE_SHARE * total:
+        return None
+    return peak / (len(current) * train.dt_s)
 
 
 def _noise_floor(sig: Signals, scale: float) -> float:

@@ -124,6 +124,22 @@ def test_input_weight_is_refined_between_grid_points(monkeypatch: pytest.MonkeyP
                                                              coarse.gap_percent)
 
 
+@pytest.mark.parametrize("kind", ["sine", "prbs"])
+def test_a_single_frequency_train_run_is_noted(kind: str) -> None:
+    """A sine command at 2 Hz cannot tell a current delay from ``Kt/J`` and ``D/J``: the
+    diagnosis says so (and names the frequency); a PRBS run gets no such note."""
+    runs = []
+    for k in range(2):
+        plant = MotorPlant(MOTOR, DriveParams(mode="current"), SENSORS, Effects(), seed=1 + k)
+        command = excitation(kind, 6000, 1e-3, 0.0, 0.5, 50, seed=1 + k)
+        runs.append(simulate_motor(plant, "current", command, 1e-3))
+    notes = [n for n in diagnose(*runs).notes if "one frequency" in n]
+    if kind == "sine":
+        assert len(notes) == 1 and "(2 Hz)" in notes[0], notes
+    else:
+        assert notes == []
+
+
 def _cogging_fit(amplitude: float, phase: float) -> FittedModel:
     coef = {"current": 100.0, "cog_sin": amplitude * math.sin(phase),
             "cog_cos": amplitude * math.cos(phase)}
