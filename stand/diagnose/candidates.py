@@ -96,9 +96,8 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
         if effect == "cogging":
             return _best([base.merged(ModelSpec(cogging_N=n)) for n in orders], train)
         return _best([base.merged(ModelSpec(ripple_N=n)) for n in orders], train)
-    top = float(np.quantile(np.abs(train.omega_f), 0.95))
     if effect == "stribeck_friction":
-        grid = top * np.geomspace(0.01, 0.5, GRID_POINTS)
+        grid = train.top_speed * np.geomspace(0.01, 0.5, GRID_POINTS)
         return _best([base.merged(ModelSpec(stribeck_ws=float(w))) for w in grid], train,
                      negative=("stribeck",))
     if effect == "backlash":

@@ -55,6 +55,9 @@ class Signals:
         Filtered position (rad), velocity (rad/s) and acceleration (rad/s²).
     quant_rad : float
         Estimated position quantization step, rad (0 if not quantized).
+    top_speed : float
+        95th percentile of ``|omega_f|``, rad/s: the run's typical top speed (the scale
+        of the Stribeck search, of the friction smoothing and of the shooting nudge).
     """
 
     dt_s: float
@@ -65,6 +68,7 @@ class Signals:
     omega_f: np.ndarray
     accel_f: np.ndarray
     quant_rad: float
+    top_speed: float
     source: str
     cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False,
                                                         compare=False)
@@ -154,7 +158,7 @@ def prepare(run: Run) -> Signals:
     return Signals(dt_s=dt, theta=theta, current=current,
                    omega_meas=central_difference(theta, dt), theta_f=theta_f,
                    omega_f=omega_f, accel_f=accel_f, quant_rad=quantization_step(theta),
-                   source=run.source)
+                   top_speed=float(np.quantile(np.abs(omega_f), 0.95)), source=run.source)
 
 
 def correlation_time(x: np.ndarray) -> float:

@@ -106,7 +106,7 @@ def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray
     span = drive.shape[1] * step.sig.dt_s
     rate = step.model.c_omega
     linear = span if abs(rate) * span < 1e-9 else math.expm1(rate * span) / rate
-    delta = max(1e-6, 1e-3 * float(np.quantile(np.abs(step.sig.omega_f), 0.95)))
+    delta = max(1e-6, 1e-3 * step.sig.top_speed)
     for _ in range(SHOOTING_STEPS):
         reach = _positions(step, anchor, drive)[:, -1] - anchor.theta
         nudged = anchor.copy()
@@ -214,9 +214,8 @@ def friction_smoothing(sig: Signals) -> float:
     friction that changes sign within the velocity resolution keeps the free run close
     to the measured one without claiming more than the data resolve near standstill.
     """
-    top = float(np.quantile(np.abs(sig.omega_f), 0.95))
     return max(VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s,
-               FRICTION_SMOOTHING_FRACTION * top, 1e-12)
+               FRICTION_SMOOTHING_FRACTION * sig.top_speed, 1e-12)
 
 
 def segments(n: int, dt_s: float, horizon_s: float, min_segments: int) -> Segments:

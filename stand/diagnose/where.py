@@ -54,7 +54,7 @@ MAX_LAG_S = 0.05
 def regime_masks(sig: Signals) -> dict[str, np.ndarray]:
     """Boolean masks of the regimes of CONTRACT §3 on ``sig``."""
     speed = np.abs(sig.omega_f)
-    top = float(np.quantile(speed, 0.95)) or 1.0
+    top = sig.top_speed or 1.0
     accel = np.abs(sig.accel_f)
     low = speed < LOW_SPEED_FRACTION * top
     sign = np.sign(sig.omega_f)

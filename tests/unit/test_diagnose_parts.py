@@ -18,14 +18,9 @@ from stand.diagnose.model import FittedModel, ModelSpec, fit, periodic_mean
 from stand.diagnose.signals import prepare, quantization_step
 from stand.diagnose.significance import paired_improvement
 from stand.diagnose.simulate import segments, simulate
-from stand.excitation import excitation
-from stand.physics.effects import Effects
-from stand.physics.parts import DriveParams
-from stand.physics.plant import MotorPlant
-from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, check_columns, write_run
 from tests.conftest import REAL_DATA
-from tests.unit.test_diagnose_effects import MOTOR, PLANTED, SENSORS, stand_runs
+from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 
 def test_quantization_step_is_the_encoder_count() -> None:
@@ -110,12 +105,7 @@ def test_input_weight_is_refined_between_grid_points(monkeypatch: pytest.MonkeyP
     """A current loop that settles within 0.2 ms, sampled every 2.5 ms: the current over
     a period is nearly the next sample's, between the weight grid's 0.875 and 1.0. The
     refined weight simulates HOLDOUT closer than the best grid weight."""
-    dt = 2.5e-3
-    runs = []
-    for k in range(2):
-        plant = MotorPlant(MOTOR, DriveParams(mode="current"), SENSORS, Effects(), seed=1 + k)
-        command = excitation("prbs", int(6.0 / dt), dt, 0.0, 0.5, 20 + 5 * k, seed=1 + k)
-        runs.append(simulate_motor(plant, "current", command, dt))
+    runs = stand_runs({}, hold=(20, 25), dt_s=2.5e-3)
     refined = diagnose(*runs)
     monkeypatch.setattr(engine, "WEIGHT_REFINEMENTS", 0)
     coarse = diagnose(*runs)
@@ -128,11 +118,7 @@ def test_input_weight_is_refined_between_grid_points(monkeypatch: pytest.MonkeyP
 def test_a_single_frequency_train_run_is_noted(kind: str) -> None:
     """A sine command at 2 Hz cannot tell a current delay from ``Kt/J`` and ``D/J``: the
     diagnosis says so (and names the frequency); a PRBS run gets no such note."""
-    runs = []
-    for k in range(2):
-        plant = MotorPlant(MOTOR, DriveParams(mode="current"), SENSORS, Effects(), seed=1 + k)
-        command = excitation(kind, 6000, 1e-3, 0.0, 0.5, 50, seed=1 + k)
-        runs.append(simulate_motor(plant, "current", command, 1e-3))
+    runs = stand_runs({}, kind=kind)
     notes = [n for n in diagnose(*runs).notes if "one frequency" in n]
     if kind == "sine":
         assert len(notes) == 1 and "(2 Hz)" in notes[0], notes
