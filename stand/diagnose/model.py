@@ -234,6 +234,17 @@ def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float, dt_s: float,
     return theta_l, omega_l
 
 
+def load_state(sig: Signals, gap: float, restitution: float) -> np.ndarray:
+    """:func:`load_estimate` on the filtered motion of ``sig``, rows load position (rad)
+    and load velocity (rad/s); cached on ``sig`` (the fit and the simulation of a
+    backlash model both need it)."""
+    key = ("load_state", gap, restitution)
+    if key not in sig.cache:
+        sig.cache[key] = np.stack(load_estimate(sig.theta_f, sig.omega_f, gap, sig.dt_s,
+                                                restitution))
+    return sig.cache[key]
+
+
 def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
     """What input column ``name`` of ``spec`` depends on (the key of the filter cache)."""
     current = (spec.delay, spec.input_weight)
@@ -265,8 +276,7 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         periodic = _periodic_column(spec.ripple_N or 0, sig, name == "rip_sin")
         return at_samples(current * periodic)
     if name == "load_accel":
-        _, omega_l = load_estimate(theta, omega, spec.backlash_gap or 0.0, sig.dt_s,
-                                   spec.backlash_restitution)
+        omega_l = load_state(sig, spec.backlash_gap or 0.0, spec.backlash_restitution)[1]
         return np.asarray(np.gradient(omega_l, sig.dt_s))
     raise InputError(f"unknown input column {name!r}")
 
@@ -366,5 +376,5 @@ def nominal() -> ModelSpec:
 
 
 __all__ = ["FittedModel", "ModelSpec", "equation_residual", "fit", "fit_residual_batch",
-           "interval_current", "load_estimate", "nominal", "periodic_mean", "regressors", "shifted",
-           "velocity_sign"]
+           "interval_current", "load_estimate", "load_state", "nominal", "periodic_mean",
+           "regressors", "shifted", "velocity_sign"]

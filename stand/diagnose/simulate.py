@@ -30,7 +30,7 @@ from stand.diagnose.model import (
     VELOCITY_RESOLUTION_COUNTS,
     FittedModel,
     interval_current,
-    load_estimate,
+    load_state,
     periodic_mean,
     shifted,
 )
@@ -90,8 +90,7 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     step = _Stepper(model, sig)
     anchor = _State(sig.theta_f[first].copy(), sig.omega_meas[first].copy())
     if spec.backlash_gap is not None:
-        tl, wl = load_estimate(sig.theta_f, sig.omega_f, spec.backlash_gap, dt,
-                               spec.backlash_restitution)
+        tl, wl = load_state(sig, spec.backlash_gap, spec.backlash_restitution)
         anchor.theta_l, anchor.omega_l = tl[first].copy(), wl[first].copy()
     _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first])
     theta = _positions(step, anchor, drive)
