@@ -72,6 +72,12 @@ def _orders(train: Signals) -> list[int]:
     return list(range(low, top + 1))
 
 
+def delay_grid(base: ModelSpec) -> list[ModelSpec]:
+    """``base`` with each delay searched, 1 to ``MAX_DELAY_SAMPLES`` samples and one
+    beyond (where a best fit is an optimum the search does not bracket)."""
+    return [base.merged(ModelSpec(delay=k)) for k in range(1, MAX_DELAY_SAMPLES + 2)]
+
+
 def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
     """The model ``base`` plus ``effect``, its hyper-parameters picked on ``train``.
 
@@ -86,8 +92,7 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
     if effect == "current_offset":
         return base.merged(ModelSpec(offset=True))
     if effect == "delay":
-        best = _best([base.merged(ModelSpec(delay=k)) for k in range(1, MAX_DELAY_SAMPLES + 2)],
-                     train)
+        best = _best(delay_grid(base), train)
         return NO_FIT if (best.delay or 0) > MAX_DELAY_SAMPLES else best
     if effect in ("cogging", "torque_ripple"):
         orders = _orders(train)

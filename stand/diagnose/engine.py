@@ -8,7 +8,9 @@
    hyper-parameters and identify it on TRAIN, simulate it on HOLDOUT: its gap, shrink,
    and a paired per-segment test of the improvement (:mod:`.significance`).
    A candidate counts only when the same search on HOLDOUT finds the same effect
-   again (same order or delay, similar size: :func:`.candidates.agree`).
+   again (same order or delay, similar size: :func:`.candidates.agree`). A delay on a
+   TRAIN run whose current is one frequency is picked across the two runs instead
+   (``_Bench.delay_across``): TRAIN alone cannot resolve it there.
 4. Take the significant candidate with the smallest gap (Stribeck friction, which
    nests Coulomb friction, wins over it when it is significant itself, i.e. when both
    runs resolve its static excess, unless Coulomb friction simulates HOLDOUT
@@ -28,7 +30,7 @@ from stand.diagnose.candidates import NO_FIT
 from stand.diagnose.model import FittedModel, ModelSpec, equation_residual, fit
 from stand.diagnose.report import Diagnosis, EffectScore
 from stand.diagnose.signals import Signals, prepare
-from stand.diagnose.significance import PairedTest, paired_improvement
+from stand.diagnose.significance import MIN_SHRINK, PairedTest, paired_improvement
 from stand.diagnose.simulate import Segments, segments, simulate
 from stand.diagnose.where import locate
 from stand.errors import InputError, NotExcitedError
@@ -61,13 +63,17 @@ class _Scored:
     gap: float
     error: np.ndarray
     consistent: bool = False
+    #: HOLDOUT scorings a hyper-parameter of the spec was picked from (1: picked on
+    #: TRAIN alone); the holdout test pays a Bonferroni factor of this many.
+    looks: int = 1
 
 
 class _Bench:
     """TRAIN and HOLDOUT prepared once; scores a model spec on them."""
 
     def __init__(self, train: Signals, holdout: Signals, horizon_s: float) -> None:
-        self.train, self.holdout = train, holdout
+        self.train, self.holdout, self.horizon_s = train, holdout, horizon_s
+        self.single_tone = _single_tone_hz(train) is not None
         self.seg: Segments = segments(len(holdout), holdout.dt_s, horizon_s, MIN_SEGMENTS)
         if len(self.seg.starts) < 2:
             raise InputError(f"{holdout.source}: too short for a holdout test; record longer")
@@ -89,6 +95,8 @@ class _Bench:
     def candidate(self, effect: str, base: _Scored) -> _Scored:
         """``base`` plus ``effect``, identified on TRAIN, scored on HOLDOUT, and checked
         for consistency: the same search on HOLDOUT must find the same effect."""
+        if effect == "delay" and self.single_tone:
+            return self.delay_across(base)
         spec = candidates.search(effect, base.spec, self.train)
         if spec == NO_FIT:
             return replace(base, spec=NO_FIT, consistent=False)
@@ -101,6 +109,36 @@ class _Bench:
                 return scored
         consistent = candidates.agree(effect, scored.model, fit(again, self.holdout))
         return replace(scored, consistent=consistent)
+
+    def delay_across(self, base: _Scored) -> _Scored:
+        """``base`` plus a delay, when TRAIN's current is one frequency.
+
+        There a delay is a phase lag of the current, which ``Kt/J`` and ``D/J`` absorb:
+        every delay fits TRAIN alike, each with its own ``Kt/J`` and ``D/J``, and
+        simulates another frequency differently. Two runs at different frequencies
+        resolve it together, as two-fold cross-validation: each delay of
+        :func:`.candidates.delay_grid` is fitted on TRAIN and simulated on HOLDOUT, and
+        fitted on HOLDOUT and simulated on TRAIN. The candidate is the delay that
+        simulates HOLDOUT best, unless that is the grid's unbracketed end (no fit). It
+        is consistent when the delay that simulates TRAIN best is the same within
+        ``DELAY_TOLERANCE_SAMPLES``, bracketed too, and shrinks TRAIN's gap of the
+        base model fitted on HOLDOUT by ``MIN_SHRINK`` at least. Having been picked on
+        HOLDOUT, its holdout test pays for the grid (``looks``).
+        """
+        grid = candidates.delay_grid(base.spec)
+        forward = [self.score(spec) for spec in grid]
+        reverse = _Bench(self.holdout, self.train, self.horizon_s)
+        backward = [reverse.score(spec).gap for spec in grid]
+        ahead = int(np.argmin([s.gap for s in forward]))
+        back = int(np.argmin(backward))
+        top = candidates.MAX_DELAY_SAMPLES
+        if grid[ahead].delay > top:
+            return replace(base, spec=NO_FIT, consistent=False)
+        consistent = (grid[back].delay <= top
+                      and abs(grid[ahead].delay - grid[back].delay)
+                      <= candidates.DELAY_TOLERANCE_SAMPLES
+                      and backward[back] <= (1.0 - MIN_SHRINK) * reverse.score(base.spec).gap)
+        return replace(forward[ahead], consistent=consistent, looks=len(grid))
 
 
 @dataclass(frozen=True)
@@ -259,8 +297,10 @@ def _improvement(base: _Scored, cand: _Scored) -> PairedTest:
     mismatch between the runs, not only with a dead zone.
     """
     if cand.spec.backlash_gap is not None and base.spec.backlash_gap is None:
-        return paired_improvement(base.sse[:1], cand.sse[:1])
-    return paired_improvement(base.sse, cand.sse)
+        test = paired_improvement(base.sse[:1], cand.sse[:1])
+    else:
+        test = paired_improvement(base.sse, cand.sse)
+    return replace(test, p_value=min(1.0, test.p_value * cand.looks))
 
 
 def _nominal_spec(train: Signals, horizon_s: float, spring: bool) -> ModelSpec:
@@ -326,8 +366,10 @@ def _notes(train: Signals) -> list[str]:
     tone = _single_tone_hz(train)
     if tone is not None:
         notes.append(f"the current on TRAIN is one frequency ({tone:.3g} Hz): a delay of the "
-                     "current cannot be told from Kt/J and D/J there, so delay is not "
-                     "diagnosable (record a run with a broadband command, e.g. PRBS)")
+                     "current cannot be told from Kt/J and D/J there, so it is picked across "
+                     "TRAIN and HOLDOUT (fitted on one, simulated on the other) and is "
+                     "diagnosable only if HOLDOUT runs at another frequency (better: record "
+                     "a run with a broadband command, e.g. PRBS)")
     return notes
 
 

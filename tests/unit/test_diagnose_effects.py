@@ -30,12 +30,12 @@ DURATION_S = 6.0
 
 def stand_runs(effects: dict[str, dict[str, float]], seed: int = 1,
                hold: tuple[int, int] = (50, 35), kind: str = "prbs",
-               dt_s: float = DT_S) -> tuple[Run, Run]:
+               dt_s: float = DT_S, motor: MotorParams = MOTOR) -> tuple[Run, Run]:
     """TRAIN and HOLDOUT of the test stand with ``effects`` (``kind`` of current command,
-    sampled every ``dt_s``)."""
+    sampled every ``dt_s``; another ``motor`` if given)."""
     runs = []
     for k in range(2):
-        plant = MotorPlant(MOTOR, DriveParams(mode="current"), SENSORS,
+        plant = MotorPlant(motor, DriveParams(mode="current"), SENSORS,
                            Effects.from_mapping(effects), seed=seed + k)
         samples = int(round(DURATION_S / dt_s))
         command = excitation(kind, samples, dt_s, 0.0, 0.5, hold[k], seed=seed + k)

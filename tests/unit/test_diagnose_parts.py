@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -124,6 +125,24 @@ def test_a_single_frequency_train_run_is_noted(kind: str) -> None:
         assert len(notes) == 1 and "(2 Hz)" in notes[0], notes
     else:
         assert notes == []
+
+
+@pytest.mark.parametrize("holdout_hold", [35, 50])
+def test_a_delay_under_one_frequency_is_found_across_the_runs(holdout_hold: int) -> None:
+    """A 3-sample delay under a 2 Hz sine, on a motor whose 50 ms mechanical time
+    constant lets the start-up transient die out at once: every delay fits TRAIN alike
+    (each with its own ``Kt/J`` and ``D/J``; a search on TRAIN alone misses it), so it
+    is picked across the runs. HOLDOUT at 2.86 Hz resolves it; HOLDOUT at the same
+    2 Hz cannot, and the delay is not significant."""
+    motor = replace(MOTOR, D=MOTOR.J / 0.05)
+    runs = stand_runs({"delay": {"k": 3}}, kind="sine", hold=(50, holdout_hold), motor=motor)
+    result = diagnose(*runs)
+    if holdout_hold == 50:
+        assert not next(e for e in result.effects if e.effect == "delay").significant
+    else:
+        assert result.verdict == "delay", result.message
+        assert result.verdict_params["delay"]["k"] == 3
+        assert result.verdict_gap_percent < 0.7 * result.gap_percent
 
 
 def _cogging_fit(amplitude: float, phase: float) -> FittedModel:
