@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -73,7 +74,6 @@ class _Bench:
 
     def __init__(self, train: Signals, holdout: Signals, horizon_s: float) -> None:
         self.train, self.holdout, self.horizon_s = train, holdout, horizon_s
-        self.single_tone = _single_tone_hz(train) is not None
         self.seg: Segments = segments(len(holdout), holdout.dt_s, horizon_s, MIN_SEGMENTS)
         if len(self.seg.starts) < 2:
             raise InputError(f"{holdout.source}: too short for a holdout test; record longer")
@@ -92,10 +92,20 @@ class _Bench:
         sse = np.stack([np.sum(error**2, axis=1), np.sum(residual**2, axis=1)])
         return _Scored(spec, model, sse, gap, error)
 
+    @cached_property
+    def tone_hz(self) -> float | None:
+        """TRAIN's current frequency when it is one frequency (:func:`_single_tone_hz`)."""
+        return _single_tone_hz(self.train)
+
+    @cached_property
+    def reverse(self) -> _Bench:
+        """The same runs the other way round: identified on HOLDOUT, scored on TRAIN."""
+        return _Bench(self.holdout, self.train, self.horizon_s)
+
     def candidate(self, effect: str, base: _Scored) -> _Scored:
         """``base`` plus ``effect``, identified on TRAIN, scored on HOLDOUT, and checked
         for consistency: the same search on HOLDOUT must find the same effect."""
-        if effect == "delay" and self.single_tone:
+        if effect == "delay" and self.tone_hz is not None:
             return self.delay_across(base)
         spec = candidates.search(effect, base.spec, self.train)
         if spec == NO_FIT:
@@ -127,7 +137,7 @@ class _Bench:
         """
         grid = candidates.delay_grid(base.spec)
         forward = [self.score(spec) for spec in grid]
-        reverse = _Bench(self.holdout, self.train, self.horizon_s)
+        reverse = self.reverse
         backward = [reverse.score(spec).gap for spec in grid]
         ahead = int(np.argmin([s.gap for s in forward]))
         back = int(np.argmin(backward))
@@ -255,7 +265,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                              "simulated position, like the measured speed",
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
-        noise_floor_percent=floor, message=message, notes=_notes(tr)), traces
+        noise_floor_percent=floor, message=message, notes=_notes(tr, bench.tone_hz)), traces
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
@@ -355,17 +365,17 @@ SINGLE_TONE_SHARE = 0.9
 SINGLE_TONE_BINS = 3
 
 
-def _notes(train: Signals) -> list[str]:
-    """Limits of what TRAIN can resolve, in words."""
+def _notes(train: Signals, tone_hz: float | None) -> list[str]:
+    """Limits of what TRAIN can resolve, in words (``tone_hz``: TRAIN's current
+    frequency when it is one frequency, else None)."""
     notes = []
     moving = train.omega_f[np.abs(train.omega_f) > 0]
     if moving.size and min(np.mean(moving > 0), np.mean(moving < 0)) < ONE_DIRECTION_SHARE:
         notes.append("the shaft turns one way only on TRAIN: coulomb_friction and "
                      "current_offset are the same constant torque there and cannot be told "
                      "apart (record a run that reverses)")
-    tone = _single_tone_hz(train)
-    if tone is not None:
-        notes.append(f"the current on TRAIN is one frequency ({tone:.3g} Hz): a delay of the "
+    if tone_hz is not None:
+        notes.append(f"the current on TRAIN is one frequency ({tone_hz:.3g} Hz): a delay of the "
                      "current cannot be told from Kt/J and D/J there, so it is picked across "
                      "TRAIN and HOLDOUT (fitted on one, simulated on the other) and is "
                      "diagnosable only if HOLDOUT runs at another frequency (better: record "
