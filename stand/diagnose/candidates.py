@@ -16,6 +16,8 @@ the same torque; with ``kt`` given also in N·m.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -39,6 +41,10 @@ GRID_POINTS = 12
 #: Range of backlash half-gaps searched, rad (from two encoder counts at least).
 MIN_GAP_RAD = 1e-4
 MAX_GAP_RAD = 0.3
+#: Halvings of the (logarithmic) gap step around the best grid gap, when the gap is
+#: picked by simulation (a simulation error is not smooth enough in the gap between grid
+#: points for the grid alone to be near its optimum).
+GAP_REFINEMENTS = 3
 #: Coefficients of restitution of the backlash contact searched (0: the load is carried).
 RESTITUTIONS: tuple[float, ...] = (0.0, 0.5)
 
@@ -47,15 +53,21 @@ RESTITUTIONS: tuple[float, ...] = (0.0, 0.5)
 NO_FIT = ModelSpec(input_weight=-1.0)
 
 
-def _best(specs: list[ModelSpec], train: Signals, negative: tuple[str, ...] = ()) -> ModelSpec:
+def _best(specs: list[ModelSpec], train: Signals, negative: tuple[str, ...] = (),
+          simulated: Callable[[ModelSpec], float] | None = None) -> ModelSpec:
     """The spec of smallest equation-error RMS on ``train``; with ``negative``, only among
-    fits whose coefficients of those columns are negative (the physical sign)."""
+    fits whose coefficients of those columns are negative (the physical sign); with
+    ``simulated`` (a spec's simulation error on ``train``), the one that simulates
+    ``train`` best among those."""
     rms, coef = fit_residual_batch(specs, train)
     for name in negative:
         column = specs[0].names().index(name)
         rms = np.where(coef[:, column] < 0, rms, np.inf)
     if not np.isfinite(rms).any():
         return NO_FIT
+    if simulated is not None:
+        rms = np.array([simulated(spec) if np.isfinite(r) else np.inf
+                        for spec, r in zip(specs, rms, strict=True)])
     return specs[int(np.argmin(rms))]
 
 
@@ -78,14 +90,24 @@ def delay_grid(base: ModelSpec) -> list[ModelSpec]:
     return [base.merged(ModelSpec(delay=k)) for k in range(1, MAX_DELAY_SAMPLES + 2)]
 
 
-def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
+def search(effect: str, base: ModelSpec, train: Signals,
+           simulated: Callable[[ModelSpec], float] | None = None) -> ModelSpec:
     """The model ``base`` plus ``effect``, its hyper-parameters picked on ``train``.
 
     The delay and backlash searches go one grid step beyond the largest value they
     report (``MAX_DELAY_SAMPLES``, ``MAX_GAP_RAD``): a best fit there is an optimum the
     search did not bracket (the equation error still falls as the delay or gap grows:
     a fit of something else, such as the nominal model's own error on a speed loop, not
-    a value the run resolves), and the search returns :data:`NO_FIT`.
+    a value the run resolves), and the search returns :data:`NO_FIT`. The backlash
+    search also goes one step below its smallest gap (two encoder counts), for the
+    same reason: a best fit there is a dead zone the encoder does not resolve.
+
+    ``simulated`` gives a spec's simulation error on ``train``. With it, the backlash
+    gap and restitution are those that simulate ``train`` best among the fits of
+    physical sign, rather than those of the smallest equation error: an impact within
+    a sample period, through a contact that is not rigid, leaves an equation error the
+    kinematic load estimate does not follow, and gaps near the true one differ there
+    by little, while their free runs differ clearly.
     """
     if effect == "coulomb_friction":
         return base.merged(ModelSpec(coulomb=True))
@@ -109,10 +131,20 @@ def search(effect: str, base: ModelSpec, train: Signals) -> ModelSpec:
         low = max(2 * train.quant_rad, MIN_GAP_RAD)
         high = max(MAX_GAP_RAD, 4 * low)
         grid = np.geomspace(low, high, GRID_POINTS)
-        grid = np.append(grid, grid[-1] ** 2 / grid[-2])  # one step beyond: bracketed?
+        ratio = grid[1] / grid[0]
+        grid = np.concatenate([[low / ratio], grid, [high * ratio]])  # bracketed?
         best = _best([base.merged(ModelSpec(backlash_gap=float(g), backlash_restitution=e))
-                      for g in grid for e in RESTITUTIONS], train, negative=("load_accel",))
-        return NO_FIT if (best.backlash_gap or 0.0) > high else best
+                      for g in grid for e in RESTITUTIONS], train, negative=("load_accel",),
+                     simulated=simulated)
+        if not low <= (best.backlash_gap or 0.0) <= high:
+            return NO_FIT
+        for _ in range(GAP_REFINEMENTS if simulated is not None else 0):
+            ratio = math.sqrt(ratio)
+            gaps = [g for g in ((best.backlash_gap or 0.0) * f for f in (1 / ratio, ratio))
+                    if low <= g <= high]
+            best = _best([best, *(replace(best, backlash_gap=float(g)) for g in gaps)], train,
+                         negative=("load_accel",), simulated=simulated)
+        return best
     raise InputError(f"effect must be one of {', '.join(EFFECTS)}, not {effect!r}")
 
 

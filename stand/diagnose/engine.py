@@ -21,8 +21,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cache, cached_property
 
 import numpy as np
 
@@ -50,6 +51,9 @@ MAX_EFFECTS = 3
 #: are searched afresh: a coincidental order of TRAIN re-fitted on HOLDOUT can keep
 #: its size by fitting another coincidence there.)
 REFIT_EFFECTS: frozenset[str] = frozenset({"stribeck_friction"})
+#: Effects whose hyper-parameters are picked by simulating the run they are searched
+#: on, not by its equation error (:func:`.candidates.search`).
+SIMULATED_SEARCHES: frozenset[str] = frozenset({"backlash"})
 #: Input reconstructions tried for the nominal model (see ``ModelSpec.input_weight``).
 INPUT_WEIGHTS: tuple[float, ...] = (0.5, 0.625, 0.75, 0.875, 1.0)
 #: Halvings of the weight step around the best grid weight (to 1/64 of a period).
@@ -107,18 +111,34 @@ class _Bench:
         for consistency: the same search on HOLDOUT must find the same effect."""
         if effect == "delay" and self.tone_hz is not None:
             return self.delay_across(base)
-        spec = candidates.search(effect, base.spec, self.train)
+        spec = candidates.search(effect, base.spec, self.train,
+                                 self.simulated(effect, self.train))
         if spec == NO_FIT:
             return replace(base, spec=NO_FIT, consistent=False)
         scored = self.score(spec)
         if effect in REFIT_EFFECTS:
             again = spec
         else:
-            again = candidates.search(effect, base.spec, self.holdout)
+            again = candidates.search(effect, base.spec, self.holdout,
+                                      self.simulated(effect, self.holdout))
             if again == NO_FIT:
                 return scored
         consistent = candidates.agree(effect, scored.model, fit(again, self.holdout))
         return replace(scored, consistent=consistent)
+
+    def simulated(self, effect: str, sig: Signals) -> Callable[[ModelSpec], float] | None:
+        """For the effects whose search picks by simulation (``SIMULATED_SEARCHES``), a
+        spec's gap when identified on ``sig`` and simulated on ``sig`` itself (TRAIN or
+        HOLDOUT: each run's search stays within that run); else None."""
+        if effect not in SIMULATED_SEARCHES:
+            return None
+        on_itself = self.on_train if sig is self.train else self.reverse.on_train
+        return cache(lambda spec: on_itself.score(spec).gap)
+
+    @cached_property
+    def on_train(self) -> _Bench:
+        """TRAIN against itself: identified and simulated on TRAIN."""
+        return _Bench(self.train, self.train, self.horizon_s)
 
     def delay_across(self, base: _Scored) -> _Scored:
         """``base`` plus a delay, when TRAIN's current is one frequency.

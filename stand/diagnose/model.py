@@ -27,6 +27,8 @@ from stand.ident.qmatrix import QSums, solve
 
 #: Samples dropped at each end of a run in the fit (filter and shift transients).
 EDGE_SAMPLES = 50
+#: Largest load inertia behind a backlash, relative to the motor's, that a fit may give.
+MAX_LOAD_RATIO = 1000.0
 #: Velocity resolution of a run, in encoder counts per sample period (of the filtered
 #: velocity, which averages over several samples).
 VELOCITY_RESOLUTION_COUNTS = 0.4
@@ -306,14 +308,52 @@ def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:
 
 
 def _stack(spec: ModelSpec, sig: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``ẋ``, ``x`` and ``u`` of the fit; a backlash model's load column in its fitting
+    form (:func:`_from_fitting_form`)."""
     u_f = filtered_inputs(spec, sig)
     keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
+    if spec.backlash_gap is not None:
+        u_f = u_f.copy()
+        load = spec.names().index("load_accel")
+        u_f[:, load] = sig.accel_f - u_f[:, load]  # θ'' − θ_l'': the twist acceleration
     if spec.spring:
         x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
         xdot = np.column_stack([sig.omega_f, sig.accel_f])[keep]
     else:  # the velocity row alone: x = [θ'], ẋ = [θ'']
         x, xdot = sig.omega_f[keep, None], sig.accel_f[keep, None]
     return xdot, x, u_f[keep]
+
+
+def _from_fitting_form(spec: ModelSpec, A: np.ndarray, B: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients of a backlash model fitted in its fitting form, in the model's form.
+
+    The model ``J·θ'' + J_l·θ_l'' = Kt·i − D·θ' − …`` is written per motor inertia with
+    the load acceleration ``θ_l''`` as a regressor (coefficient ``−J_l/J``). Fitted that
+    way it is an errors-in-variables problem: while the load is carried ``θ_l'' = θ''``,
+    the output itself, so least squares gains by moving that coefficient towards
+    ``+1`` (it shrinks the whole residual by ``1 − c``), whatever the gap; the equation
+    error then no longer tells gaps apart. Fitted per total inertia instead,
+    ``θ'' = (Kt·i − D·θ' − …)/(J + J_l) + c·(θ'' − θ_l'')`` with ``c = J_l/(J + J_l)``,
+    the load column is the twist acceleration, zero while the load is carried, and the
+    fit has no such direction. This converts back (every other coefficient times
+    ``1/(1 − c)``, the load's ``−c/(1 − c)``); ``c ≤ 0`` gives a non-negative load
+    coefficient, which the searches reject as unphysical, and ``c`` above the share of
+    a load ``MAX_LOAD_RATIO`` times the motor's gives NaN (a load that is never
+    carried in the run: the twist acceleration is then the acceleration itself and the
+    fit trivial, ``c = 1``).
+    """
+    if spec.backlash_gap is None:
+        return A, B
+    load = spec.names().index("load_accel")
+    c = B[..., load]
+    c = np.where(c <= MAX_LOAD_RATIO / (1.0 + MAX_LOAD_RATIO), c, np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = 1.0 / (1.0 - c)
+        B = B * gain[..., None]
+        B[..., load] = -c * gain
+        A = A * gain[..., None]
+    return A, B
 
 
 def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
@@ -327,7 +367,7 @@ def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
     xdot, x, u = _stack(spec, sig)
     sums = QSums.zeros(x.shape[1], u.shape[1]).add(xdot, x, u, sig.dt_s)
     result = solve(sums)
-    A, B = np.asarray(result.A)[-1], np.asarray(result.B)[-1]
+    A, B = _from_fitting_form(spec, np.asarray(result.A)[-1], np.asarray(result.B)[-1])
     names = spec.names()
     coef = {name: float(B[j]) for j, name in enumerate(names)}
     if not coef["current"] > 0 and spec == ModelSpec():
@@ -336,7 +376,8 @@ def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
             f"{coef['current']:.3g}, not positive; check the sign of current_A against "
             "position_rad, or excite the motor more"
         )
-    c_theta_se = float(np.asarray(result.A_se)[-1, 0]) if spec.spring else 0.0
+    se = _from_fitting_form(spec, np.asarray(result.A_se)[-1], np.asarray(result.B)[-1])[0]
+    c_theta_se = abs(float(se[0])) if spec.spring else 0.0
     return FittedModel(spec=spec, c_theta=float(A[0]) if spec.spring else 0.0,
                        c_omega=float(A[-1]), coef=coef, c_theta_se=c_theta_se,
                        residual_rms=float(np.asarray(result.residual_rms)[-1]),
@@ -348,8 +389,8 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
     """Equation-error RMS on ``sig`` of each of ``specs`` (same column layout), rad/s².
 
     The specs must have the same number of input columns; they are solved as one batch.
-    Problems that cannot be solved give ``inf``. Also returns the input coefficients,
-    shape (specs, columns), in the order of ``ModelSpec.names``.
+    Problems that cannot be solved (or give no finite model) give ``inf``. Also returns
+    the input coefficients, shape (specs, columns), in the order of ``ModelSpec.names``.
     """
     stacks = [_stack(spec, sig) for spec in specs]
     n = min(len(s[1]) for s in stacks)
@@ -359,7 +400,10 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
     sums = QSums.zeros(x.shape[2], u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
     result = solve(sums, check=False)
     rms = np.asarray(result.residual_rms)[:, -1]
-    return np.where(np.isfinite(rms), rms, np.inf), np.asarray(result.B)[:, -1, :]
+    A, B = _from_fitting_form(specs[0], np.asarray(result.A)[:, -1, :],
+                              np.asarray(result.B)[:, -1, :])
+    solved = np.isfinite(rms) & np.isfinite(A).all(axis=1) & np.isfinite(B).all(axis=1)
+    return np.where(solved, rms, np.inf), B
 
 
 def equation_residual(model: FittedModel, sig: Signals) -> np.ndarray:

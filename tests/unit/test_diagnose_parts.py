@@ -15,11 +15,11 @@ import pytest
 from stand.cli import main
 from stand.diagnose import diagnose, engine
 from stand.diagnose.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
-from stand.diagnose.model import FittedModel, ModelSpec, fit, periodic_mean
+from stand.diagnose.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
 from stand.diagnose.signals import prepare, quantization_step
 from stand.diagnose.significance import paired_improvement
 from stand.diagnose.simulate import segments, simulate
-from stand.runfile import Run, check_columns, write_run
+from stand.runfile import Run, check_columns, read_run, write_run
 from tests.conftest import REAL_DATA
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
@@ -145,6 +145,47 @@ def test_a_delay_under_one_frequency_is_found_across_the_runs(holdout_hold: int)
         assert result.verdict_gap_percent < 0.7 * result.gap_percent
 
 
+@pytest.mark.parametrize("kind", ["prbs", "sine"])
+def test_backlash_equation_error_is_smallest_at_the_planted_gap(kind: str) -> None:
+    """Fitted per total inertia (``model._from_fitting_form``), a backlash model's
+    equation error is smallest at the planted gap, with a positive load inertia there.
+    With the load acceleration as a plain regressor (an errors-in-variables fit: it
+    equals the output while the load is carried) it was smallest at the grid's smallest
+    gap, with a negative load inertia, under both commands."""
+    sig = prepare(stand_runs({"backlash": PLANTED["backlash"]}, kind=kind)[0])
+    grid = np.geomspace(0.002, 0.2, 11)  # the planted 0.02 rad is grid[5]
+    specs = [ModelSpec(input_weight=0.5, backlash_gap=float(g)) for g in grid]
+    rms, coef = fit_residual_batch(specs, sig)
+    assert int(np.argmin(rms)) == 5, rms
+    assert coef[5, specs[5].names().index("load_accel")] < 0, coef[5]
+
+
+def test_a_backlash_gap_the_run_never_closes_is_no_fit() -> None:
+    """With a gap wider than the run's whole travel the load is never carried: the twist
+    acceleration is the acceleration itself and the fit per total inertia trivial (a
+    load share of 1). That is no model, not an infinite load; the EMPS pulses record,
+    which moves less than the largest gaps searched, crashed the simulation with it."""
+    sig = prepare(stand_runs({})[0])
+    gap = 2.0 * float(np.ptp(sig.theta_f))
+    rms, _ = fit_residual_batch([ModelSpec(input_weight=0.5, backlash_gap=gap)], sig)
+    assert rms[0] == np.inf
+
+
+def test_backlash_under_a_sine_is_picked_by_its_simulation() -> None:
+    """Under a current sine the load changes sides at every reversal of the torque,
+    through the stand's 150 Hz contact, not a rigid one. The gap and restitution that
+    simulate TRAIN best, refined between grid points, give the planted gap and load
+    inertia and a third of the gap goes; the gap of the smallest equation error over
+    the grid left a load 40 % light and shrank the gap by 7 %."""
+    planted = PLANTED["backlash"]
+    result = diagnose(*stand_runs({"backlash": planted}, kind="sine"), kt=MOTOR.Kt)
+    assert result.verdict == "backlash", result.message
+    score = next(e for e in result.effects if e.effect == "backlash")
+    assert score.shrink > 0.15, score
+    np.testing.assert_allclose(score.params["gap"], planted["gap"], rtol=0.2)
+    np.testing.assert_allclose(score.params["J_load"], planted["J_load"], rtol=0.3)
+
+
 def _cogging_fit(amplitude: float, phase: float) -> FittedModel:
     coef = {"current": 100.0, "cog_sin": amplitude * math.sin(phase),
             "cog_cos": amplitude * math.cos(phase)}
@@ -247,18 +288,20 @@ EMPS = REAL_DATA / "emps"
 
 
 @pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason="EMPS data not present")
-def test_real_emps_axis_has_coulomb_friction() -> None:
-    """EMPS (closed loop, m and N): TRAIN the estimation record, HOLDOUT the pulses one.
+def test_real_emps_axis_has_coulomb_friction(tmp_path: Path) -> None:
+    """EMPS (closed loop, m and N): TRAIN the estimation record, HOLDOUT the pulses one,
+    imported as a user would (``stand import``, README). The pulses record moves less
+    than the largest backlash gaps searched; read back from its run file, a load that
+    is never carried once gave a finite, huge inertia that crashed the simulation.
 
     The authors' reference (IDIM-LS): Fc = 20.39 N, offset −3.16 N.
     """
-    from scipy.io import loadmat
 
     def load(name: str) -> Run:
-        data = loadmat(EMPS / f"{name}.mat")
-        force = float(data["gtau"][0, 0]) * data["vir"].ravel()
-        return check_columns({"time_s": data["t"].ravel(), "current_A": force,
-                              "position_rad": data["qm"].ravel()}, "single", name)
+        path = tmp_path / f"{name}.csv"
+        assert main(["import", str(EMPS / f"{name}.mat"), "-o", str(path), "--map", "time_s=t",
+                     "--map", "position_rad=qm", "--map", "current_A=vir*gtau"]) == 0
+        return read_run(path)
 
     result = diagnose(load("DATA_EMPS"), load("DATA_EMPS_PULSES"), kt=1.0)
     assert result.verdict.split("+")[0] == "coulomb_friction", result.message
