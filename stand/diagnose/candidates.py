@@ -6,7 +6,8 @@ torque ripple, the Stribeck velocity and the backlash gap are picked on TRAIN by
 smallest equation-error RMS over a grid (the Q-matrix solver, batched where the grid
 keeps the number of columns), among fits of physical sign (a static level above the
 Coulomb level, a positive load inertia), and for the delay and the gap only where the
-grid brackets the optimum (:func:`search`).
+grid brackets the optimum (:func:`search`). The backlash gap and restitution are
+picked by simulating TRAIN instead when the caller gives the simulation.
 
 Parameters come back relative to the torque constant (the current-driven model only
 identifies torques per ``Kt``): ``Tc_over_Kt_A`` etc., in amperes of current that make

@@ -29,6 +29,8 @@ from stand.ident.qmatrix import QSums, solve
 EDGE_SAMPLES = 50
 #: Largest load inertia behind a backlash, relative to the motor's, that a fit may give.
 MAX_LOAD_RATIO = 1000.0
+#: The share ``J_l/(J + J_l)`` of such a load.
+MAX_LOAD_SHARE = MAX_LOAD_RATIO / (1.0 + MAX_LOAD_RATIO)
 #: Velocity resolution of a run, in encoder counts per sample period (of the filtered
 #: velocity, which averages over several samples).
 VELOCITY_RESOLUTION_COUNTS = 0.4
@@ -338,22 +340,30 @@ def _from_fitting_form(spec: ModelSpec, A: np.ndarray, B: np.ndarray
     the load column is the twist acceleration, zero while the load is carried, and the
     fit has no such direction. This converts back (every other coefficient times
     ``1/(1 − c)``, the load's ``−c/(1 − c)``); ``c ≤ 0`` gives a non-negative load
-    coefficient, which the searches reject as unphysical, and ``c`` above the share of
-    a load ``MAX_LOAD_RATIO`` times the motor's gives NaN (a load that is never
-    carried in the run: the twist acceleration is then the acceleration itself and the
-    fit trivial, ``c = 1``).
+    coefficient, which the searches reject as unphysical, and ``c`` is held at the share
+    of a load ``MAX_LOAD_RATIO`` times the motor's (:func:`_never_carried`).
     """
     if spec.backlash_gap is None:
         return A, B
     load = spec.names().index("load_accel")
-    c = B[..., load]
-    c = np.where(c <= MAX_LOAD_RATIO / (1.0 + MAX_LOAD_RATIO), c, np.nan)
+    c = np.minimum(B[..., load], MAX_LOAD_SHARE)
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = 1.0 / (1.0 - c)
         B = B * gain[..., None]
         B[..., load] = -c * gain
         A = A * gain[..., None]
     return A, B
+
+
+def _never_carried(spec: ModelSpec, B: np.ndarray) -> np.ndarray:
+    """Where a backlash model fitted in its fitting form (coefficients ``B``, shape
+    (specs, columns)) has a load share above ``MAX_LOAD_SHARE``: a load the run never
+    carries (a gap wider than its travel). The twist acceleration is then the
+    acceleration itself and the fit trivial (share 1), not a model; the searches skip
+    it, and a fit of it elsewhere keeps the load at ``MAX_LOAD_RATIO``."""
+    if spec.backlash_gap is None:
+        return np.zeros(B.shape[0], dtype=bool)
+    return np.asarray(B[:, spec.names().index("load_accel")] > MAX_LOAD_SHARE)
 
 
 def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
@@ -400,9 +410,10 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
     sums = QSums.zeros(x.shape[2], u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
     result = solve(sums, check=False)
     rms = np.asarray(result.residual_rms)[:, -1]
-    A, B = _from_fitting_form(specs[0], np.asarray(result.A)[:, -1, :],
-                              np.asarray(result.B)[:, -1, :])
-    solved = np.isfinite(rms) & np.isfinite(A).all(axis=1) & np.isfinite(B).all(axis=1)
+    B_fitted = np.asarray(result.B)[:, -1, :]
+    A, B = _from_fitting_form(specs[0], np.asarray(result.A)[:, -1, :], B_fitted)
+    solved = (np.isfinite(rms) & np.isfinite(A).all(axis=1) & np.isfinite(B).all(axis=1)
+              & ~_never_carried(specs[0], B_fitted))
     return np.where(solved, rms, np.inf), B
 
 
