@@ -252,7 +252,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
     bench = _Bench(tr, ho, horizon_s)
-    base = bench.score(_nominal_spec(tr, horizon_s, spring))
+    base = bench.score(_nominal_spec(bench.on_train, spring))
     singles = {name: bench.candidate(name, base) for name in candidates.EFFECTS}
     n_tests = len(singles)
     scores = []
@@ -333,8 +333,9 @@ def _improvement(base: _Scored, cand: _Scored) -> PairedTest:
     return replace(test, p_value=min(1.0, test.p_value * cand.looks))
 
 
-def _nominal_spec(train: Signals, horizon_s: float, spring: bool) -> ModelSpec:
-    """The nominal model with the input reconstruction that simulates TRAIN best.
+def _nominal_spec(on_train: _Bench, spring: bool) -> ModelSpec:
+    """The nominal model with the input reconstruction that simulates TRAIN best
+    (``on_train``: TRAIN against itself, :attr:`_Bench.on_train`).
 
     The weight is picked on the grid ``INPUT_WEIGHTS`` and then refined by halving the
     step around the best one ``WEIGHT_REFINEMENTS`` times, within the grid's range. Where
@@ -348,7 +349,6 @@ def _nominal_spec(train: Signals, horizon_s: float, spring: bool) -> ModelSpec:
     by most of a sample can invert the fitted gain); if none gives one, the run is not
     excited and :class:`~stand.errors.NotExcitedError` is raised.
     """
-    on_train = _Bench(train, train, horizon_s)
     gaps: dict[float, float] = {}
     error: NotExcitedError | None = None
 

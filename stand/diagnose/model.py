@@ -346,13 +346,11 @@ def _from_fitting_form(spec: ModelSpec, A: np.ndarray, B: np.ndarray
     if spec.backlash_gap is None:
         return A, B
     load = spec.names().index("load_accel")
-    c = np.minimum(B[..., load], MAX_LOAD_SHARE)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain = 1.0 / (1.0 - c)
-        B = B * gain[..., None]
-        B[..., load] = -c * gain
-        A = A * gain[..., None]
-    return A, B
+    c = np.minimum(B[..., load], MAX_LOAD_SHARE)  # so 1 − c > 0
+    gain = 1.0 / (1.0 - c)
+    B = B * gain[..., None]
+    B[..., load] = -c * gain
+    return A * gain[..., None], B
 
 
 def _never_carried(spec: ModelSpec, B: np.ndarray) -> np.ndarray:

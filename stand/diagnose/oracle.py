@@ -137,7 +137,7 @@ def visibility(train: Run, holdout: Run, motor: MotorParams,
     gap, and whether the engine's own test would call that beyond noise."""
     tr, ho = prepare(train), prepare(holdout)
     bench = _Bench(tr, ho, ANCHOR_HORIZON_S)
-    base_spec = _nominal_spec(tr, ANCHOR_HORIZON_S, False)
+    base_spec = _nominal_spec(bench.on_train, False)
     sse, gaps = [], []
     for model in (fit(base_spec, tr), _true_model(base_spec, motor, effects, tr)):
         error = simulate(model, ho, bench.seg) - bench.measured
