@@ -103,8 +103,7 @@ def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray
     barely responds to its start speed (a shaft held by friction), the slope of the
     linear model is used instead."""
     span = drive.shape[1] * step.sig.dt_s
-    rate = step.model.c_omega
-    linear = span if abs(rate) * span < 1e-9 else math.expm1(rate * span) / rate
+    linear = span * _phi1(step.model.c_omega * span)
     delta = max(1e-6, 1e-3 * step.sig.top_speed)
     for _ in range(SHOOTING_STEPS):
         reach = _positions(step, anchor, drive)[:, -1] - anchor.theta
@@ -145,6 +144,14 @@ class _Stepper:
                    (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
         self.n_sub = int(min(MAX_SUBSTEPS, max(1, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
         self.h = sig.dt_s / self.n_sub
+        # The speed's own rate c_ω stepped exactly: over a sub-step the speed relaxes at
+        # that rate towards what the other terms (held over the sub-step) drive it to.
+        # An Euler step gives the drive torque a gain h where the exact one is
+        # (e^(c_ω·h) − 1)/c_ω: ~c_ω·h/2 too much, a few % at c_ω·h of 0.05-0.1, a
+        # structural error of the simulation that effect candidates would absorb. While
+        # a backlash load is carried the rate is c_ω/(1 + J_l/J).
+        self.h_free = self.h * _phi1(model.c_omega * self.h)
+        self.h_carried = self.h * _phi1(model.c_omega * self.h / (1.0 + self.ratio))
 
     def sample(self, st: _State, i: np.ndarray) -> None:
         """Advance ``st`` by one sample period under the current ``i``."""
@@ -167,6 +174,7 @@ class _Stepper:
         level = (self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.friction
                  else 0.0)
         scale: np.ndarray | float = 1.0
+        h_eff: np.ndarray | float = self.h_free
         side = np.zeros_like(theta)
         if gap is not None:
             twist = theta - st.theta_l
@@ -175,12 +183,7 @@ class _Stepper:
             side = np.where(side * a_motor > 0, side, 0.0)
             side = np.where(side * (st.omega_l - omega) > 0, 0.0, side)  # load rebounding away
             scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
-        # The speed's own rate c_ω stepped exactly: over a sub-step the speed relaxes at
-        # that rate towards what the other terms (held over the sub-step) drive it to.
-        # An Euler step gives the drive torque a gain h where the exact one is
-        # (e^(c_ω·h) − 1)/c_ω: ~c_ω·h/2 too much, a few % at c_ω·h of 0.05-0.1, a
-        # structural error of the simulation that effect candidates would absorb.
-        h_eff = h * _phi1(scale * self.model.c_omega * h)
+            h_eff = np.where(side != 0, self.h_carried, self.h_free)
         if self.friction:
             # Friction stepped implicitly (stable for any smoothing): where it can stop the
             # shaft within the step the speed goes to the linear regime of tanh near zero.
@@ -210,12 +213,10 @@ class _Stepper:
             st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
 
 
-def _phi1(z: np.ndarray | float) -> np.ndarray | float:
-    """``(e^z − 1)/z`` (1 at ``z = 0``)."""
-    z = np.asarray(z, dtype=float)
-    small = np.abs(z) < 1e-8
-    safe = np.where(small, 1.0, z)
-    return np.where(small, 1.0 + 0.5 * z, np.expm1(safe) / safe)
+def _phi1(z: float) -> float:
+    """``(e^z − 1)/z``, 1 at ``z = 0``: what a rate ``z`` per unit time makes of a unit
+    time step driven by a held input (the exact step of a linear first-order system)."""
+    return 1.0 + 0.5 * z if abs(z) < 1e-9 else math.expm1(z) / z
 
 
 def friction_smoothing(sig: Signals) -> float:
