@@ -30,15 +30,18 @@ DURATION_S = 6.0
 
 def stand_runs(effects: dict[str, dict[str, float]], seed: int = 1,
                hold: tuple[int, int] = (50, 35), kind: str = "prbs",
-               dt_s: float = DT_S, motor: MotorParams = MOTOR) -> tuple[Run, Run]:
-    """TRAIN and HOLDOUT of the test stand with ``effects`` (``kind`` of current command,
-    sampled every ``dt_s``; another ``motor`` if given)."""
+               dt_s: float = DT_S, motor: MotorParams = MOTOR,
+               sensors: SensorParams = SENSORS, amplitude: tuple[float, float] = (0.5, 0.5),
+               duration_s: float = DURATION_S) -> tuple[Run, Run]:
+    """TRAIN and HOLDOUT of the test stand with ``effects`` (``kind`` of current command
+    of ``amplitude`` A, sampled every ``dt_s``; another ``motor``, ``sensors`` or
+    ``duration_s`` if given)."""
     runs = []
     for k in range(2):
-        plant = MotorPlant(motor, DriveParams(mode="current"), SENSORS,
+        plant = MotorPlant(motor, DriveParams(mode="current"), sensors,
                            Effects.from_mapping(effects), seed=seed + k)
-        samples = int(round(DURATION_S / dt_s))
-        command = excitation(kind, samples, dt_s, 0.0, 0.5, hold[k], seed=seed + k)
+        samples = int(round(duration_s / dt_s))
+        command = excitation(kind, samples, dt_s, 0.0, amplitude[k], hold[k], seed=seed + k)
         runs.append(simulate_motor(plant, "current", command, dt_s))
     return runs[0], runs[1]
 

@@ -19,11 +19,7 @@ from stand.diagnose.model import FittedModel, ModelSpec, fit, fit_residual_batch
 from stand.diagnose.signals import prepare, quantization_step
 from stand.diagnose.significance import paired_improvement
 from stand.diagnose.simulate import segments, simulate
-from stand.excitation import excitation
-from stand.physics.effects import Effects
-from stand.physics.parts import DriveParams, MotorParams, SensorParams
-from stand.physics.plant import MotorPlant
-from stand.physics.simulate import simulate_motor
+from stand.physics.parts import MotorParams, SensorParams
 from stand.runfile import Run, check_columns, read_run, write_run
 from tests.conftest import REAL_DATA
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
@@ -216,30 +212,19 @@ def test_the_simulation_steps_the_speed_rate_exactly() -> None:
     assert np.sqrt(np.mean(error**2)) < 1e-3 * np.std(sig.omega_meas)
 
 
-def _current_sine(seed: int) -> tuple[Run, Run]:
-    """An effect-free stand: a current loop following a ±15.6 mA sine at 0.61 Hz
-    (±11.3 mA at 0.47 Hz on HOLDOUT) on a small motor, a 1024-line encoder, 2.52 ms
-    sampling, 10 s runs."""
-    motor = MotorParams(R=1.31, L=2.03e-4, Kt=0.0961, J=1.98e-5, D=1.58e-5)
-    drive = DriveParams(mode="current", current_limit_A=0.311)
-    sensors = SensorParams(encoder_lines=1024, current_noise_A=5.3e-5)
-    dt_s = 0.002525
-    runs = []
-    for k, (amplitude, hold) in enumerate(((0.01556, 65), (0.01126, 85))):
-        plant = MotorPlant(motor, drive, sensors, Effects.from_mapping({}), seed=seed + k)
-        command = excitation("sine", int(round(10.0 / dt_s)), dt_s, 0.0, amplitude, hold,
-                             seed=seed + k)
-        runs.append(simulate_motor(plant, "current", command, dt_s))
-    return runs[0], runs[1]
-
-
 def test_a_dead_zone_of_a_few_counts_is_no_backlash(monkeypatch: pytest.MonkeyPatch) -> None:
     """Quantization alone looks like a dead zone of a few counts at every reversal of a
     sine. On this effect-free current-loop sine, with the search from two counts (as it
     was), a backlash of two counts of half-gap shrank the gap by 6 % (p 4e-4), and
     HOLDOUT's own search agreed: a false alarm. From ``MIN_GAP_COUNTS`` up it is not
     found."""
-    train, holdout = _current_sine(seed=1)
+    # a ±15.6 mA sine at 0.61 Hz (±11.3 mA at 0.47 Hz on HOLDOUT) on a small motor, a
+    # 1024-line encoder, 2.52 ms sampling, 10 s runs
+    train, holdout = stand_runs(
+        {}, hold=(65, 85), kind="sine", dt_s=0.002525, duration_s=10.0,
+        motor=MotorParams(R=1.31, L=2.03e-4, Kt=0.0961, J=1.98e-5, D=1.58e-5),
+        sensors=SensorParams(encoder_lines=1024, current_noise_A=5.3e-5),
+        amplitude=(0.01556, 0.01126))
     assert diagnose(train, holdout).verdict == "none"
     floor = candidates.MIN_GAP_COUNTS
     monkeypatch.setattr(candidates, "MIN_GAP_COUNTS", 2)
