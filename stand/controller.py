@@ -26,8 +26,7 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from stand.errors import BusError, LimitError, ProfileError, RunAborted
 from stand.excitation import excitation
@@ -38,7 +37,15 @@ from stand.procedures import (
     efficiency_procedure,
     torque_constant_procedures,
 )
-from stand.profiles import PROFILES_DIR, MotorProfile, load_motor, load_stand, resolve
+from stand.profiles import (
+    PROFILES_DIR,
+    MotorProfile,
+    load_motor,
+    load_stand,
+    read_profile,
+    resolve,
+    validate,
+)
 from stand.runfile import check_columns, format_run, write_run
 
 log = logging.getLogger(__name__)
@@ -75,14 +82,7 @@ class ExperimentProfile(BaseModel):
 def load_experiment(name_or_path: str | Path) -> ExperimentProfile:
     """Load and validate ``profiles/experiments/<name>.yaml`` (or a path)."""
     path = resolve(name_or_path, "experiments")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-        return ExperimentProfile(**data)
-    except (OSError, yaml.YAMLError, TypeError) as exc:
-        raise ProfileError(f"{path}: cannot read experiment profile: {exc}") from exc
-    except ValidationError as exc:
-        where = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
-        raise ProfileError(f"{path}: {where}") from exc
+    return validate(ExperimentProfile, read_profile(path), path)
 
 
 @dataclass(frozen=True)

@@ -259,6 +259,7 @@ class ControllerRunner:
         from pydantic import ValidationError
 
         from stand.controller import ExperimentProfile, load_experiment, plan
+        from stand.profiles import describe
 
         name = str(request.get("profile"))
         experiment = load_experiment(name)
@@ -270,9 +271,7 @@ class ControllerRunner:
         try:
             experiment = ExperimentProfile(**{**experiment.model_dump(), **overrides})
         except ValidationError as exc:
-            where = "; ".join(f"overrides.{'.'.join(map(str, e['loc']))}: {e['msg']}"
-                              for e in exc.errors())
-            raise InputError(where) from exc
+            raise InputError(describe(exc, "overrides.", echo=False)) from exc
         runs = plan(experiment)  # LimitError before anything moves
         target = str(experiment.stand or experiment.motor)
         return [RunPlan(proc.kind, experiment.name,

@@ -28,3 +28,13 @@ def to_jsonable(value: Any) -> Any:
         number = float(value)
         return number if math.isfinite(number) else None
     return value
+
+
+class JsonResult:
+    """Base of the result dataclasses: :meth:`to_json` is what ``stand … --json`` prints."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The result as plain JSON data (NaN and ±Inf as ``None``): exactly the object the
+        command line prints with ``--json``."""
+        data: dict[str, Any] = to_jsonable(self)
+        return data

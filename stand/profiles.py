@@ -1,15 +1,21 @@
-"""Profiles: motors and stands described in YAML under ``profiles/``.
+"""Profiles: motors, stands and experiments described in YAML.
 
 A motor profile names the motor's parameters, its drive, sensors, limits and the
 effects present; a stand profile couples two motor profiles through a reducer. Values a
 source does not give are listed under ``assumptions``. Loading validates everything and
 names the file and the field that is wrong.
+
+The shipped profiles (``profiles/`` in the repository) install as the package
+:data:`PROFILE_PACKAGE` and are found with :mod:`importlib.resources`, so an installed
+``stand`` reads them from any directory. This module is the one place that reads a
+profile's YAML and the one that turns a pydantic validation error into a message.
 """
 
 from __future__ import annotations
 
+from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -18,8 +24,24 @@ from stand.errors import NotFoundError, ProfileError
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, ReducerParams, SensorParams
 
-#: The profiles shipped with the project.
-PROFILES_DIR = Path(__file__).resolve().parent.parent / "profiles"
+#: The package the shipped profiles install as (``profiles/`` in the repository).
+PROFILE_PACKAGE = "stand.profile_data"
+#: Kinds of profile, each a folder of YAML files.
+KINDS = ("motors", "stands", "experiments")
+
+
+def _shipped_dir() -> Path:
+    root = resources.files(PROFILE_PACKAGE)
+    if not isinstance(root, Path):  # pragma: no cover - pip always installs unpacked
+        raise ProfileError(f"the shipped profiles ({PROFILE_PACKAGE}) are not files on disk: "
+                           f"{root}; reinstall motorstand with pip")
+    return root
+
+
+#: The folder of the shipped profiles.
+PROFILES_DIR = _shipped_dir()
+
+Model = TypeVar("Model", bound=BaseModel)
 
 
 class _Spec(BaseModel):
@@ -112,15 +134,31 @@ class StandProfile(_Spec):
         return ReducerParams(**self.reducer.model_dump())
 
 
-def _describe(exc: ValidationError) -> str:
+def describe(exc: ValidationError, prefix: str = "", echo: bool = True) -> str:
+    """One message for all of a pydantic error's fields: ``field: problem (got value)``.
+
+    ``prefix`` names where the fields live (``overrides.``); ``echo=False`` leaves the
+    offending values out (for input whose values must not be shown back).
+    """
     parts = []
     for error in exc.errors():
-        where = ".".join(str(p) for p in error["loc"]) or "(top level)"
-        parts.append(f"{where}: {error['msg']} (got {error.get('input')!r})")
+        where = prefix + (".".join(str(p) for p in error["loc"]) or "(top level)")
+        got = f" (got {error.get('input')!r})" if echo and "input" in error else ""
+        parts.append(f"{where}: {error['msg']}{got}")
     return "; ".join(parts)
 
 
-def _read_yaml(path: Path) -> dict[str, Any]:
+def validate(model: type[Model], data: dict[str, Any], where: str | Path) -> Model:
+    """``model(**data)``, a validation error becoming a :class:`ProfileError` that names
+    ``where`` and every wrong field."""
+    try:
+        return model(**data)
+    except ValidationError as exc:
+        raise ProfileError(f"{where}: {describe(exc)}") from exc
+
+
+def read_profile(path: Path) -> dict[str, Any]:
+    """The fields of the profile YAML file ``path``, as a mapping."""
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as exc:
@@ -133,7 +171,9 @@ def _read_yaml(path: Path) -> dict[str, Any]:
 
 
 def resolve(name_or_path: str | Path, kind: str = "motors") -> Path:
-    """Find a profile by file path or by name under ``profiles/<kind>/``."""
+    """Find a profile by file path or by name among the shipped ``<kind>`` profiles."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") and path.exists():
         return path
@@ -147,16 +187,13 @@ def resolve(name_or_path: str | Path, kind: str = "motors") -> Path:
 def load_motor(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> MotorProfile:
     """Load and validate a motor profile, with optional top-level ``overrides``."""
     path = resolve(name_or_path, "motors")
-    data = _read_yaml(path)
+    data = read_profile(path)
     for key, value in (overrides or {}).items():
         if isinstance(value, dict) and isinstance(data.get(key), dict):
             data[key] = {**data[key], **value}
         else:
             data[key] = value
-    try:
-        profile = MotorProfile(**data)
-    except ValidationError as exc:
-        raise ProfileError(f"{path}: {_describe(exc)}") from exc
+    profile = validate(MotorProfile, data, path)
     profile.effect_set()  # validates the effect parameters, naming the field
     return profile
 
@@ -164,15 +201,12 @@ def load_motor(name_or_path: str | Path, overrides: dict[str, Any] | None = None
 def load_stand(name_or_path: str | Path) -> StandProfile:
     """Load and validate a two-motor stand profile."""
     path = resolve(name_or_path, "stands")
-    try:
-        return StandProfile(**_read_yaml(path))
-    except ValidationError as exc:
-        raise ProfileError(f"{path}: {_describe(exc)}") from exc
+    return validate(StandProfile, read_profile(path), path)
 
 
 def list_profiles() -> dict[str, list[str]]:
-    """Names of the shipped profiles by kind."""
-    return {
-        kind.name: sorted(p.stem for p in kind.glob("*.yaml"))
-        for kind in sorted(PROFILES_DIR.iterdir()) if kind.is_dir()
-    }
+    """Names of the shipped profiles by kind (``eds``: the object dictionaries' files)."""
+    names = {kind: sorted(p.stem for p in (PROFILES_DIR / kind).glob("*.yaml")) for kind in KINDS}
+    names["eds"] = sorted(p.name for p in (PROFILES_DIR / "eds").iterdir()
+                          if p.suffix.lower() in (".eds", ".dcf"))
+    return names

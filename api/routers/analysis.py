@@ -7,14 +7,13 @@ inputs and answers the result's fields plus ``result_id``.
 
 from __future__ import annotations
 
-import importlib
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from fastapi import APIRouter, HTTPException, Request
+from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel
 
@@ -27,8 +26,9 @@ from api.schemas import (
     TorqueConstantRequest,
 )
 from api.uploads import parse_body
+from stand import diagnose, efficiency, identify, step_identify, torque_constant
 from stand.errors import SolverError, StandError
-from stand.jsonable import to_jsonable
+from stand.jsonable import JsonResult
 from stand.runfile import RunKind
 from stand.storage import Storage
 
@@ -36,42 +36,27 @@ router = APIRouter(tags=["analysis"])
 log = logging.getLogger("stand.api")
 
 
-def _domain(name: str, *modules: str) -> Callable[..., Any]:
-    """The domain function ``name`` from the first of ``modules`` that has it; 501 while
-    that part of the project is not built."""
-    for module in modules:
-        try:
-            function: Callable[..., Any] = getattr(importlib.import_module(module), name)
-        except (ModuleNotFoundError, AttributeError):
-            continue
-        return function
-    raise HTTPException(501, f"{name} ({', '.join(modules)}) is not available in this build")
+def _identify(body: IdentifyRequest, runs: dict[str, Any]) -> JsonResult:
+    return identify(runs["run"], method=body.method, no_load_current_A=body.no_load_current_A)
 
 
-def _identify(body: IdentifyRequest, runs: dict[str, Any]) -> Any:
-    return _domain("identify_run", "stand.ident.identify", "stand.ident.qmatrix")(
-        runs["run"], method=body.method, no_load_current_A=body.no_load_current_A)
+def _torque_constant(body: TorqueConstantRequest, runs: dict[str, Any]) -> JsonResult:
+    return torque_constant(runs["no_load"], runs["loaded"], body.added_inertia,
+                           method=body.method, compensate=body.compensate)
 
 
-def _torque_constant(body: TorqueConstantRequest, runs: dict[str, Any]) -> Any:
-    return _domain("torque_constant", "stand.ident.torque_constant")(
-        runs["no_load"], runs["loaded"], body.added_inertia, method=body.method,
-        compensate=body.compensate)
+def _efficiency(body: EfficiencyRequest, runs: dict[str, Any]) -> JsonResult:
+    return efficiency(runs["run"], body.ratio, body.k_in, body.k_out)
 
 
-def _efficiency(body: EfficiencyRequest, runs: dict[str, Any]) -> Any:
-    return _domain("efficiency", "stand.ident.efficiency")(runs["run"], body.ratio, body.k_in,
-                                                          body.k_out)
+def _step_identify(body: StepIdentifyRequest, runs: dict[str, Any]) -> JsonResult:
+    return step_identify(runs["runs"], known={str(k): v for k, v in body.known.items()},
+                         method=body.method)
 
 
-def _step_identify(body: StepIdentifyRequest, runs: dict[str, Any]) -> Any:
-    return _domain("identify_steps", "stand.stepid")(runs["runs"], known=dict(body.known),
-                                                     method=body.method)
-
-
-def _diagnose(body: DiagnoseRequest, runs: dict[str, Any]) -> Any:
+def _diagnose(body: DiagnoseRequest, runs: dict[str, Any]) -> JsonResult:
     options = body.model_dump(include={"kt", "horizon_s", "max_effects"}, exclude_none=True)
-    return _domain("diagnose", "stand.diagnose")(runs["train"], runs["holdout"], **options)
+    return diagnose(runs["train"], runs["holdout"], **options)
 
 
 @dataclass(frozen=True)
@@ -81,7 +66,7 @@ class Operation:
     name: str
     model: type[BaseModel]
     run_fields: dict[str, RunKind]
-    call: Callable[[Any, dict[str, Any]], Any]
+    call: Callable[[Any, dict[str, Any]], JsonResult]
 
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (
@@ -108,7 +93,7 @@ def _load_runs(storage: Storage, op: Operation, body: BaseModel) -> dict[str, An
 def _execute(storage: Storage, op: Operation, body: BaseModel) -> dict[str, Any]:
     runs = _load_runs(storage, op, body)
     try:
-        result = to_jsonable(op.call(body, runs))
+        result = op.call(body, runs).to_json()
     except StandError:
         raise
     except (ValueError, ArithmeticError, IndexError, np.linalg.LinAlgError) as exc:

@@ -1,12 +1,14 @@
 """The ``stand`` command line (CONTRACT §2).
 
 Each command lives in its own module under ``stand.cli`` and is imported only when it
-runs (the table below, as python-can's interface table). A command module defines::
+runs (the table below, as python-can's interface table: ``stand serve`` need not load
+SciPy, nor ``stand identify`` FastAPI). A command module defines::
 
-    HELP: str                                   # set in COMMANDS below
     def add_arguments(parser) -> None
-    def run(args) -> dict                       # the JSON result
-    def summarize(result: dict) -> str          # the human summary
+    def run(args) -> JsonResult | dict          # a result of the public API, or plain data
+    def summarize(result: dict) -> str          # the human summary of the JSON object
+
+The JSON object is the result's ``to_json()``: the same object the Python API returns.
 
 With ``--json`` only the JSON object goes to stdout. Exit codes: 0 success, 2 bad input
 (:class:`~stand.errors.InputError`, :class:`~stand.errors.NotFoundError`, argparse),
@@ -23,7 +25,7 @@ import sys
 from collections.abc import Sequence
 
 from stand.errors import InputError, NotFoundError, StandError
-from stand.jsonable import to_jsonable
+from stand.jsonable import JsonResult, to_jsonable
 
 #: Command name to (module, one-line help).
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -64,13 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if name not in COMMANDS:
         top.parse_args(argv[:1])  # prints the usage and exits 2
     module_name, help_text = COMMANDS[name]
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name != module_name:
-            raise
-        print(f"stand {name}: not available in this build", file=sys.stderr)
-        return 1
+    module = importlib.import_module(module_name)
     parser = argparse.ArgumentParser(prog=f"stand {name}", description=help_text)
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     module.add_arguments(parser)
@@ -86,9 +82,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"stand {name}: interrupted", file=sys.stderr)
         return 1
+    data = result.to_json() if isinstance(result, JsonResult) else to_jsonable(result)
     if args.json:
-        json.dump(to_jsonable(result), sys.stdout, allow_nan=False)
+        json.dump(data, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
     else:
-        print(module.summarize(result))
+        print(module.summarize(data))
     return 0

@@ -17,11 +17,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--min-snr", type=float, default=None,
                         help="least SNR of a planted effect on HOLDOUT (default "
-                        "stand.diagnose.benchmark.MIN_EFFECT_SNR; 0 keeps every first draw)")
+                        "stand.diagnosis.benchmark.MIN_EFFECT_SNR; 0 keeps every first draw)")
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    from stand.diagnose.benchmark import MIN_EFFECT_SNR, run_benchmark, summarize_cases, timing_case
+    from stand.diagnosis.benchmark import MIN_EFFECT_SNR, run_benchmark, summarize_cases, timing_case
 
     if args.cases < 1 or args.workers < 1:
         raise InputError(f"--cases and --workers must be >= 1, got {args.cases}, {args.workers}")
@@ -41,7 +41,7 @@ def _percent(value: float | None) -> str:
 
 
 def summarize(result: dict[str, Any]) -> str:
-    from stand.diagnose.benchmark import confusion_table
+    from stand.diagnosis.benchmark import confusion_table
 
     timing = result["timing_20s_1khz"]
     return "\n".join([

@@ -107,7 +107,7 @@ def _diagnosis_runs(out: Path, motor_name: str, period_s: float) -> list[Any]:
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    from stand.diagnose import diagnose
+    from stand.diagnosis import diagnose
     from stand.ident.efficiency import efficiency
     from stand.ident.torque_constant import torque_constant
     from stand.profiles import load_motor, load_stand

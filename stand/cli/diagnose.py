@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from typing import Any
 
-from stand.diagnose import diagnose
-from stand.diagnose.engine import ANCHOR_HORIZON_S, MAX_EFFECTS, diagnose_with_traces
-from stand.errors import InputError
-from stand.jsonable import to_jsonable
-from stand.runfile import read_run
+from stand import Diagnosis, InputError, diagnose, read_run
+from stand.diagnosis.engine import ANCHOR_HORIZON_S, MAX_EFFECTS, diagnose_with_traces
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="DIR", help="write PNG figures to this folder")
 
 
-def run(args: argparse.Namespace) -> dict[str, Any]:
+def run(args: argparse.Namespace) -> Diagnosis:
     train = read_run(args.train, "single")
     holdout = read_run(args.holdout, "single")
     if args.kt is not None and not args.kt > 0:
@@ -35,13 +33,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     options = dict(kt=args.kt, horizon_s=args.horizon, max_effects=args.max_effects,
                    spring=args.spring)
     if not args.plot:
-        return dict(to_jsonable(diagnose(train, holdout, **options)))
-    from stand.diagnose.plots import write_plots
+        return diagnose(train, holdout, **options)
+    from stand.diagnosis.plots import write_plots
 
     result, traces = diagnose_with_traces(train, holdout, **options)
-    out: dict[str, Any] = to_jsonable(result)
-    out["plots"] = [str(p) for p in write_plots(args.plot, result, traces)]
-    return out
+    return replace(result, plots=[str(p) for p in write_plots(args.plot, result, traces)])
 
 
 def summarize(result: dict[str, Any]) -> str:

@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from stand.ident.efficiency import efficiency
-from stand.jsonable import to_jsonable
-from stand.runfile import read_run
+from stand import EfficiencyResult, efficiency, read_run
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,9 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="torque constant of the output motor, N·m/A")
 
 
-def run(args: argparse.Namespace) -> dict[str, Any]:
-    result = efficiency(read_run(args.run, "reducer"), args.ratio, args.k_in, args.k_out)
-    return {**to_jsonable(result), "source": args.run}
+def run(args: argparse.Namespace) -> EfficiencyResult:
+    return efficiency(read_run(args.run, "reducer"), args.ratio, args.k_in, args.k_out)
 
 
 def summarize(result: dict[str, Any]) -> str:

@@ -5,10 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from stand import IdentifyResult, identify, read_run
 from stand.ident.derivatives import METHODS
-from stand.ident.identify import identify_run
-from stand.jsonable import to_jsonable
-from stand.runfile import read_run
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,10 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: chosen from the current's noise)")
 
 
-def run(args: argparse.Namespace) -> dict[str, Any]:
-    result = identify_run(read_run(args.run, "single"), args.method, args.no_load_current,
-                          args.half_width)
-    return {**to_jsonable(result), "source": args.run}
+def run(args: argparse.Namespace) -> IdentifyResult:
+    return identify(read_run(args.run, "single"), args.method, args.no_load_current,
+                    args.half_width)
 
 
 def summarize(result: dict[str, Any]) -> str:

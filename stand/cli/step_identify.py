@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from stand.errors import InputError
-from stand.jsonable import to_jsonable
-from stand.runfile import Run, read_run
-from stand.stepid import METHODS, PARAM_NAMES, StepResult, identify_steps, simulated_response
+from stand import InputError, Run, StepResult, read_run, step_identify
+from stand.stepid import METHODS, PARAM_NAMES, simulated_response
 from stand.stepid.model import HOLDS, PARAM_UNITS
 
 
@@ -89,16 +88,14 @@ def plot(result: StepResult, runs: list[Run], path: str) -> Path:
     return out
 
 
-def run(args: argparse.Namespace) -> dict[str, Any]:
+def run(args: argparse.Namespace) -> StepResult:
     known = parse_known(args.known)
     runs = [read_run(path, "step") for path in args.runs]
-    result = identify_steps(runs, known=known, method=args.method, hold=args.hold,
-                            use_current=not args.speed_only)
-    out: dict[str, Any] = to_jsonable(result)
-    out["files"] = [str(path) for path in args.runs]
+    result = step_identify(runs, known=known, method=args.method, hold=args.hold,
+                           use_current=not args.speed_only)
     if args.plot:
-        out["plot"] = str(plot(result, runs, args.plot))
-    return out
+        result = replace(result, plot=str(plot(result, runs, args.plot)))
+    return result
 
 
 def summarize(result: dict[str, Any]) -> str:

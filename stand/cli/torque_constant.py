@@ -5,10 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from stand import TorqueConstantResult, read_run, torque_constant
 from stand.ident.derivatives import METHODS
-from stand.ident.torque_constant import torque_constant
-from stand.jsonable import to_jsonable
-from stand.runfile import read_run
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,12 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: chosen from the current's noise)")
 
 
-def run(args: argparse.Namespace) -> dict[str, Any]:
-    result = torque_constant(
+def run(args: argparse.Namespace) -> TorqueConstantResult:
+    return torque_constant(
         [read_run(path, "single") for path in args.no_load],
         [read_run(path, "single") for path in args.loaded],
         args.added_inertia, args.method, not args.no_compensation, args.half_width)
-    return dict(to_jsonable(result))
 
 
 def summarize(result: dict[str, Any]) -> str:

@@ -25,6 +25,7 @@ import numpy as np
 
 from stand.errors import InputError, NotExcitedError
 from stand.ident.noise import noise_sigma
+from stand.jsonable import JsonResult
 from stand.runfile import Run
 
 #: Samples averaged on each side by the step detector.
@@ -38,7 +39,7 @@ MIN_PLATEAU_SAMPLES = 8
 
 
 @dataclass(frozen=True)
-class EfficiencyResult:
+class EfficiencyResult(JsonResult):
     """Efficiency of a reducer (CONTRACT §2 ``stand efficiency``).
 
     Attributes
@@ -58,6 +59,8 @@ class EfficiencyResult:
         η of each step.
     ratio, k_in, k_out : float
         Inputs: reduction ratio, torque constants of the input and output motors (N·m/A).
+    source : str
+        The run analysed (its file name).
     """
 
     efficiency: float
@@ -70,6 +73,7 @@ class EfficiencyResult:
     ratio: float
     k_in: float
     k_out: float
+    source: str = ""
 
 
 def find_steps(signal: np.ndarray, window: int = DETECTOR_SAMPLES) -> np.ndarray:
@@ -162,4 +166,5 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
         delta_i_in_A=float(np.mean(di_in)), delta_i_out_A=float(np.mean(di_out)), steps=m,
         step_times_s=[float(run.time_s[s]) for s in steps],
         efficiency_steps=[float(e) for e in etas], ratio=ratio, k_in=k_in, k_out=k_out,
+        source=run.source,
     )

@@ -20,6 +20,7 @@ from stand.errors import NotExcitedError
 from stand.ident.derivatives import state_derivatives
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
+from stand.jsonable import JsonResult
 from stand.runfile import Run
 
 #: Blocks the current is split into to test that it varies beyond its noise.
@@ -34,7 +35,7 @@ MAX_RELATIVE_SE = 0.25
 
 
 @dataclass(frozen=True)
-class IdentifyResult:
+class IdentifyResult(JsonResult):
     """Identified model of one run (CONTRACT §2 ``stand identify``).
 
     Attributes
@@ -65,6 +66,8 @@ class IdentifyResult:
         Current subtracted from the measured current, A.
     half_width : int
         Half width of the default method's kernel, samples (0 for ``paper``).
+    source : str
+        The run identified (its file name).
     """
 
     A: list[list[float]]
@@ -82,6 +85,7 @@ class IdentifyResult:
     dt_s: float
     no_load_current_A: float
     half_width: int
+    source: str = ""
 
 
 def _check_current_varies(current: np.ndarray, source: str) -> None:
@@ -160,5 +164,5 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
         Kt_over_J_se=b2_se, D_over_J_se=float(q.A_se[1, 1]), C_over_J_se=float(q.A_se[1, 0]),
         fit_percent=float(q.fit_percent[1]), condition_number=float(q.condition_number),
         samples=int(q.samples), method=method, dt_s=dt, no_load_current_A=no_load_current_A,
-        half_width=states.first if method == "default" else 0,
+        half_width=states.first if method == "default" else 0, source=run.source,
     )

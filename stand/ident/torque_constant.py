@@ -25,11 +25,12 @@ import numpy as np
 from stand.errors import InputError
 from stand.ident.derivatives import state_derivatives
 from stand.ident.identify import IdentifyResult, identify_run
+from stand.jsonable import JsonResult
 from stand.runfile import Run
 
 
 @dataclass(frozen=True)
-class TorqueConstantResult:
+class TorqueConstantResult(JsonResult):
     """Torque constant and rotor parameters (CONTRACT §2 ``stand torque-constant``).
 
     Attributes

@@ -18,12 +18,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from stand.errors import InputError
+from stand.jsonable import JsonResult
 from stand.runfile import Run
 from stand.stepid.equation_error import equation_error, noise_level
 from stand.stepid.model import PARAM_NAMES, StepData, respond, step_data
@@ -37,7 +38,7 @@ REWEIGHT_FACTOR = 1.2
 
 
 @dataclass(frozen=True)
-class StepResult:
+class StepResult(JsonResult):
     """Result of :func:`identify_steps` (CONTRACT §2 ``stand step-identify``).
 
     Attributes
@@ -69,6 +70,10 @@ class StepResult:
         The equation-error transfer function the fit started from.
     initial_voltage_V : list of float
         Per run, the voltage whose steady state the run starts in (0 for a run from rest), V.
+    files : list of str
+        The runs identified (their file names), in order.
+    plot : str or None
+        The figure written by the command line's ``--plot``, if any.
     """
 
     transfer_function: dict[str, list[float]]
@@ -95,6 +100,8 @@ class StepResult:
     initial_voltage_V: list[float]
     alternatives: list[dict[str, float]] = field(default_factory=list)
     message: str = ""
+    files: list[str] = field(default_factory=list)
+    plot: str | None = None
 
 
 def _check_known(known: Mapping[str, float]) -> dict[str, float]:
@@ -243,8 +250,9 @@ def identify_steps(runs: Sequence[Run], known: Mapping[str, float] | None = None
             problem = _Problem(data, coefs0, hold, rms)
             best = _fit(problem, best.x, method)
             nfev += best.nfev
-    return _result(problem, best, coefs0, known_values, method, hold, nfev,
-                   time.perf_counter() - started, "".join(notes))
+    result = _result(problem, best, coefs0, known_values, method, hold, nfev,
+                     time.perf_counter() - started, "".join(notes))
+    return replace(result, files=[run.source for run in runs])
 
 
 def _channel_rms(problem: _Problem, theta: np.ndarray) -> list[float]:

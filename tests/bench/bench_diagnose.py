@@ -15,7 +15,7 @@ import json
 import sys
 import time
 
-from stand.diagnose.benchmark import (
+from stand.diagnosis.benchmark import (
     MIN_EFFECT_SNR,
     confusion_table,
     run_benchmark,
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     print(confusion_table(summary))
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
     print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
-          f"stand.diagnose.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
+          f"stand.diagnosis.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
           f"{'n/a' if summary['median_snr'] is None else format(summary['median_snr'], '.2f')}")
     if summary["refused"]:
         print(f"cases the engine refused (counted wrong): {summary['refused']}")

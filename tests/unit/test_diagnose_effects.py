@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from stand.diagnose import diagnose
+from stand.diagnosis import diagnose
 from stand.excitation import excitation
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams

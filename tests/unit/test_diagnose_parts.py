@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from stand.cli import main
-from stand.diagnose import candidates, diagnose, engine
-from stand.diagnose.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
-from stand.diagnose.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
-from stand.diagnose.signals import prepare, quantization_step
-from stand.diagnose.significance import paired_improvement
-from stand.diagnose.simulate import segments, simulate
+from stand.diagnosis import candidates, diagnose, engine
+from stand.diagnosis.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
+from stand.diagnosis.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
+from stand.diagnosis.signals import prepare, quantization_step
+from stand.diagnosis.significance import paired_improvement
+from stand.diagnosis.simulate import segments, simulate
 from stand.physics.parts import MotorParams, SensorParams
 from stand.runfile import Run, check_columns, read_run, write_run
 from tests.conftest import REAL_DATA

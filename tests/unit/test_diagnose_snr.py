@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stand.diagnose.benchmark import MIN_EFFECT_SNR, draw_case
-from stand.diagnose.candidates import agree
-from stand.diagnose.model import FittedModel, ModelSpec, load_estimate
-from stand.diagnose.snr import effect_snr
+from stand.diagnosis.benchmark import MIN_EFFECT_SNR, draw_case
+from stand.diagnosis.candidates import agree
+from stand.diagnosis.model import FittedModel, ModelSpec, load_estimate
+from stand.diagnosis.snr import effect_snr
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs
 
 

@@ -111,13 +111,13 @@ def test_idim_recovers_a_known_axis_and_refuses_no_motion() -> None:
 
 def test_diagnosis_names_coulomb_friction_on_pulses(estimation: Run, pulses: Run) -> None:
     try:
-        module = importlib.import_module("stand.diagnose")
+        module = importlib.import_module("stand.diagnosis")
     except ModuleNotFoundError as exc:
-        if not (exc.name or "").startswith("stand.diagnose"):
+        if not (exc.name or "").startswith("stand.diagnosis"):
             raise
-        pytest.skip(f"stand.diagnose (helper 'diagnose') is not in this tree: {exc}")
+        pytest.skip(f"stand.diagnosis (helper 'diagnose') is not in this tree: {exc}")
     if not hasattr(module, "diagnose"):
-        pytest.skip("stand.diagnose has no diagnose() yet (helper 'diagnose' is writing it)")
+        pytest.skip("stand.diagnosis has no diagnose() yet (helper 'diagnose' is writing it)")
     diagnose = module.diagnose
 
     diagnosis = diagnose(estimation, pulses, kt=1.0)  # current_A carries force: Kt = 1 N/A

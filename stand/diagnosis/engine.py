@@ -27,14 +27,14 @@ from functools import cache, cached_property
 
 import numpy as np
 
-from stand.diagnose import candidates
-from stand.diagnose.candidates import NO_FIT
-from stand.diagnose.model import FittedModel, ModelSpec, equation_residual, fit
-from stand.diagnose.report import Diagnosis, EffectScore
-from stand.diagnose.signals import Signals, prepare
-from stand.diagnose.significance import MIN_SHRINK, PairedTest, paired_improvement
-from stand.diagnose.simulate import Segments, segments, simulate
-from stand.diagnose.where import locate
+from stand.diagnosis import candidates
+from stand.diagnosis.candidates import NO_FIT
+from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
+from stand.diagnosis.report import Diagnosis, EffectScore
+from stand.diagnosis.signals import Signals, prepare
+from stand.diagnosis.significance import MIN_SHRINK, PairedTest, paired_improvement
+from stand.diagnosis.simulate import Segments, segments, simulate
+from stand.diagnosis.where import locate
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run
 

@@ -1,6 +1,6 @@
 """The candidate effects of CONTRACT §3 as model extensions, and their small searches.
 
-Each candidate adds regressors to a base model (:class:`~stand.diagnose.model.ModelSpec`).
+Each candidate adds regressors to a base model (:class:`~stand.diagnosis.model.ModelSpec`).
 Most are linear in their parameters; the delay ``k``, the order ``N`` of cogging and
 torque ripple, the Stribeck velocity and the backlash gap are picked on TRAIN by the
 smallest equation-error RMS over a grid (the Q-matrix solver, batched where the grid
@@ -22,8 +22,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from stand.diagnose.model import FittedModel, ModelSpec, fit_residual_batch
-from stand.diagnose.signals import Signals
+from stand.diagnosis.model import FittedModel, ModelSpec, fit_residual_batch
+from stand.diagnosis.signals import Signals
 from stand.errors import InputError
 
 #: Effect names in vocabulary order (``none`` excluded).

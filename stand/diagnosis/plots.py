@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.axes import Axes
 
-from stand.diagnose.engine import Traces
-from stand.diagnose.report import Diagnosis
+from stand.diagnosis.engine import Traces
+from stand.diagnosis.report import Diagnosis
 
 #: Longest stretch of HOLDOUT shown in the speed figure, s.
 SPEED_WINDOW_S = 3.0
@@ -25,7 +25,7 @@ SCATTER_POINTS = 20_000
 
 def write_plots(folder: str | Path, diagnosis: Diagnosis, traces: Traces) -> list[Path]:
     """Write the four PNGs of a diagnosis (from
-    :func:`~stand.diagnose.engine.diagnose_with_traces`) to ``folder``; return their paths."""
+    :func:`~stand.diagnosis.engine.diagnose_with_traces`) to ``folder``; return their paths."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from stand.jsonable import JsonResult
+
 
 @dataclass(frozen=True)
 class EffectScore:
@@ -21,7 +23,7 @@ class EffectScore:
     significant : bool
         The improvement over the nominal model passes the noise-aware test.
     params : dict
-        Fitted parameters in physical units (see :func:`stand.diagnose.candidates.params`).
+        Fitted parameters in physical units (see :func:`stand.diagnosis.candidates.params`).
     p_value : float
         One-sided p-value of the improvement.
     consistent : bool
@@ -68,7 +70,7 @@ class Where:
 
 
 @dataclass(frozen=True)
-class Diagnosis:
+class Diagnosis(JsonResult):
     """The sim-to-real gap of a HOLDOUT run, where it lies and which effect explains it.
 
     Attributes
@@ -96,6 +98,8 @@ class Diagnosis:
     notes : list of str
         What the data cannot tell apart or resolve (e.g. Coulomb friction from a current
         offset when the shaft never reverses).
+    plots : list of str
+        The figures written by the command line's ``--plot``, if any.
     """
 
     gap_percent: float
@@ -109,3 +113,4 @@ class Diagnosis:
     noise_floor_percent: float
     message: str = ""
     notes: list[str] = field(default_factory=list)
+    plots: list[str] = field(default_factory=list)

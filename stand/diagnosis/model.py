@@ -7,10 +7,10 @@ Every model is ``J·θ'' + D·θ' + C·θ = Kt·i + extensions``, written per un
 with the states ``x = [θ, θ']`` and the inputs ``u = [i, φ_1, φ_2, ...]`` of the Q-matrix
 solver (:mod:`stand.ident.qmatrix`, seed 000 eq. 10); the extension regressors ``φ_j``
 enter as extra input columns. The fit uses the filtered signals of
-:mod:`stand.diagnose.signals` (equation error); the nonlinear hyper-parameters (delay
+:mod:`stand.diagnosis.signals` (equation error); the nonlinear hyper-parameters (delay
 ``k``, order ``N``, Stribeck velocity, backlash gap) are fixed by :class:`ModelSpec`.
 
-Simulation (:func:`stand.diagnose.simulate.simulate`) runs a fitted model free over
+Simulation (:func:`stand.diagnosis.simulate.simulate`) runs a fitted model free over
 segments of HOLDOUT, re-anchored at the start of each, driven only by the measured
 current; the same segments are used for every candidate.
 """
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stand.diagnose.signals import Signals
+from stand.diagnosis.signals import Signals
 from stand.errors import InputError, NotExcitedError
 from stand.ident.qmatrix import QSums, solve
 
@@ -72,7 +72,7 @@ class ModelSpec:
         reconstruction, picked once on TRAIN and shared by every candidate.
     spring : bool
         Whether the ``C·θ`` term of seed 000 is in the model (``C = 0`` otherwise; see
-        :func:`stand.diagnose.engine.diagnose`).
+        :func:`stand.diagnosis.engine.diagnose`).
     """
 
     delay: int = 0

@@ -6,9 +6,9 @@ gap is the diagnosis' ``gap_percent``) and the engine's model with the planted e
 at their TRUE parameters (only its nominal part, ``Kt/J`` and ``D/J``, identified on
 TRAIN as the engine would, so that both share the errors of identification), simulates
 both on HOLDOUT with the engine's own re-anchoring
-(:func:`stand.diagnose.simulate.simulate`: same segments, same input reconstruction)
+(:func:`stand.diagnosis.simulate.simulate`: same segments, same input reconstruction)
 and applies the engine's own noise-aware paired test
-(:func:`stand.diagnose.significance.paired_improvement`) to the pair.
+(:func:`stand.diagnosis.significance.paired_improvement`) to the pair.
 
 An effect is *visible* when even its exact model passes that test against the
 identified nominal model: it changes the holdout speed (or acceleration) by more than
@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stand.diagnose.candidates import EFFECTS
-from stand.diagnose.engine import ANCHOR_HORIZON_S, _Bench, _nominal_spec
-from stand.diagnose.model import (
+from stand.diagnosis.candidates import EFFECTS
+from stand.diagnosis.engine import ANCHOR_HORIZON_S, _Bench, _nominal_spec
+from stand.diagnosis.model import (
     EDGE_SAMPLES,
     FittedModel,
     ModelSpec,
@@ -34,14 +34,14 @@ from stand.diagnose.model import (
     fit,
     regressors,
 )
-from stand.diagnose.signals import Signals, prepare
-from stand.diagnose.significance import paired_improvement
-from stand.diagnose.simulate import simulate
+from stand.diagnosis.signals import Signals, prepare
+from stand.diagnosis.significance import paired_improvement
+from stand.diagnosis.simulate import simulate
 from stand.physics.parts import MotorParams
 from stand.runfile import Run
 
 #: Number of candidate tests the engine corrects for in its first selection step (one
-#: per effect of the vocabulary, as in :func:`stand.diagnose.engine.diagnose`).
+#: per effect of the vocabulary, as in :func:`stand.diagnosis.engine.diagnose`).
 ENGINE_TESTS = len(EFFECTS)
 
 

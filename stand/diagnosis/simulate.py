@@ -2,7 +2,7 @@
 
 The model runs free over each segment of ``horizon`` samples, driven only by the
 measured current (held over each sample period as
-:func:`~stand.diagnose.model.interval_current` reconstructs it), and is re-anchored at
+:func:`~stand.diagnosis.model.interval_current` reconstructs it), and is re-anchored at
 the start of every segment. The simulated speed is compared with the measured one,
 which is the central difference of the measured position (the mean speed over two
 sample periods, not the speed at the instant), so the simulation reports the same: the
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stand.diagnose.model import (
+from stand.diagnosis.model import (
     EDGE_SAMPLES,
     VELOCITY_RESOLUTION_COUNTS,
     FittedModel,
@@ -34,7 +34,7 @@ from stand.diagnose.model import (
     periodic_mean,
     shifted,
 )
-from stand.diagnose.signals import Signals
+from stand.diagnosis.signals import Signals
 
 #: Largest product of sub-step and fastest model rate in the simulation.
 MAX_RATE_STEP = 0.1

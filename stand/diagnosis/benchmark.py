@@ -3,7 +3,7 @@
 Each case draws a motor, a drive mode and excitation, sensors, and zero, one or two
 effects of the vocabulary over wide ranges (:func:`draw_case`); an effect's parameters
 are drawn again until it shows above the sensor noise on HOLDOUT (its SNR,
-:mod:`stand.diagnose.snr`, measured with the TRUE plant, at least ``min_snr``;
+:mod:`stand.diagnosis.snr`, measured with the TRUE plant, at least ``min_snr``;
 ``min_snr=0`` keeps every first draw); simulates a TRAIN and a
 HOLDOUT run with the stand simulator (:mod:`stand.physics`); writes both as CSV files
 (CONTRACT §1) and reads them back, so the diagnosis sees only what a user has; and
@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from stand.diagnose.candidates import EFFECTS
-from stand.diagnose.engine import diagnose
-from stand.diagnose.oracle import visibility
-from stand.diagnose.snr import effect_snr
+from stand.diagnosis.candidates import EFFECTS
+from stand.diagnosis.engine import diagnose
+from stand.diagnosis.oracle import visibility
+from stand.diagnosis.snr import effect_snr
 from stand.errors import StandError
 from stand.excitation import excitation
 from stand.physics.effects import Effects
@@ -48,7 +48,7 @@ STRENGTH_RANGE = (0.03, 0.3)
 MAX_ORDER_DRAWN = 24
 #: Encoder resolutions drawn, lines per revolution (4x quadrature).
 ENCODER_LINES = (500, 1000, 1024, 2000, 2500, 4096, 5000)
-#: Least SNR of the planted effects on HOLDOUT (:mod:`stand.diagnose.snr`): the RMS they
+#: Least SNR of the planted effects on HOLDOUT (:mod:`stand.diagnosis.snr`): the RMS they
 #: add to the exact nominal model's error at least equals what sensor noise gives.
 MIN_EFFECT_SNR = 1.0
 #: Draws of a case's effect parameters on one stand, and of stands, before the last
@@ -150,7 +150,7 @@ def _draw_stand(index: int, seed: int, rng: np.random.Generator) -> Case:
 
 
 def case_snr(case: Case, duration_s: float = RUN_DURATION_S) -> float:
-    """SNR of the case's effects on its HOLDOUT run (:func:`stand.diagnose.snr.effect_snr`)."""
+    """SNR of the case's effects on its HOLDOUT run (:func:`stand.diagnosis.snr.effect_snr`)."""
     J_with = case.motor.J + case.effects.get("backlash", {}).get("J_load", 0.0)
     return effect_snr(_simulate(case, 1, duration_s), _simulate(case, 1, duration_s, {}),
                       case.motor.J, J_with, case.motor.D, case.motor.Kt, SNR_HORIZON_S)

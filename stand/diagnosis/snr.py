@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from stand.diagnose.model import interval_current
+from stand.diagnosis.model import interval_current
 from stand.runfile import Run
 
 #: Input reconstructions tried for the exact nominal model (the best one on the

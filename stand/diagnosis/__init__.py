@@ -11,7 +11,7 @@ Modules: :mod:`.signals` (derived signals), :mod:`.model` (regressors and Q-matr
 (figures), :mod:`.benchmark` (blind benchmark on simulated stands).
 """
 
-from stand.diagnose.engine import diagnose
-from stand.diagnose.report import Diagnosis, EffectScore, Where
+from stand.diagnosis.engine import diagnose
+from stand.diagnosis.report import Diagnosis, EffectScore, Where
 
 __all__ = ["Diagnosis", "EffectScore", "Where", "diagnose"]

@@ -1,7 +1,7 @@
 """Is a candidate's holdout improvement more than noise? A paired test over segments.
 
 The simulation is re-anchored to the measured state at the start of each segment
-(:func:`stand.diagnose.model.segments`), so the squared velocity errors of different
+(:func:`stand.diagnosis.model.segments`), so the squared velocity errors of different
 segments are nearly independent, while samples inside a segment are not. The test
 therefore works on one number per segment: ``d_j = Σ e_base² − Σ e_candidate²`` over
 segment ``j``, and asks whether the mean of ``d`` is above zero (one-sided paired

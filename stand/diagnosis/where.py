@@ -22,8 +22,8 @@ import math
 import numpy as np
 from scipy import signal as sps
 
-from stand.diagnose.report import Where
-from stand.diagnose.signals import Signals, correlation_time
+from stand.diagnosis.report import Where
+from stand.diagnosis.signals import Signals, correlation_time
 
 REGIMES: tuple[str, ...] = ("low_speed", "reversal", "high_speed", "acceleration", "steady")
 #: Speeds below this fraction of the 95th-percentile speed count as low speed.

@@ -1,0 +1,6 @@
+"""The profiles motorstand ships: data, not code.
+
+Installed as the package ``stand.profile_data`` and read with :mod:`importlib.resources`
+(:mod:`stand.profiles`), so an installed ``stand`` finds them from any directory:
+``motors/``, ``stands/``, ``experiments/`` (YAML) and ``eds/`` (object dictionaries).
+"""
