@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The project's test command (README): lint, types, unit + integration tests, then the
+# The project's test command (README): lint, types, the installed wheel run from outside
+# the checkout (tests/installed.sh), unit + integration tests, then the
 # real-SocketCAN suite inside User-Mode Linux (skipped with a note where UML is missing,
 # unless STAND_REQUIRE_VCAN=1).
 set -euo pipefail
@@ -8,6 +9,7 @@ py=.venv/bin/python
 [ -x "$py" ] || py=python3
 "$py" -m ruff check stand bus api tests
 "$py" -m mypy
+bash tests/installed.sh
 "$py" -m pytest "$@"
 if [ -x /usr/bin/linux.uml ]; then
     bash tests/vcan/run.sh
