@@ -13,7 +13,7 @@ from typing import Any
 
 from fastapi import FastAPI
 
-from api import errors
+from api import errors, pages
 from api.limits import BodyLimit
 from api.routers import analysis, health, profiles, results, runs, stand
 from stand.jobs import SIMULATED_MASTER_OPTIONS, ControllerRunner, JobManager, StandRunner
@@ -67,11 +67,13 @@ def create_app(settings: Settings | None = None,
             jobs.close()
             storage.close()
 
-    app = FastAPI(title="motorstand", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    app = FastAPI(title="motorstand", version="0.1.0", description=DESCRIPTION, lifespan=lifespan,
+                  docs_url=None, redoc_url=None)
     app.state.settings = settings
     errors.install(app)
     app.add_middleware(BodyLimit, limit=settings.upload_limit_bytes)
     for router in (health.router, profiles.router, runs.router, analysis.router, results.router,
                    stand.router):
         app.include_router(router)
+    pages.install(app)
     return app

@@ -1,0 +1,121 @@
+"""The dashboard and the docs in a real browser (headless chromium) against a real server.
+
+The page must list a stored run, take the service's key, start a run with its button and
+draw the run live from the event stream while it runs; /docs and /redoc must render from
+the service's own assets (chromium here has no internet, so a CDN would leave them blank).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stand.runfile import format_run
+from tests.integration.browser import chromium, needs_chromium
+from tests.integration.test_api_support import Server, serve
+
+pytestmark = needs_chromium
+
+#: Wall-time bounds on 2 shared cores, s.
+PAGE_TIMEOUT_S = 30.0
+RUN_TIMEOUT_S = 120.0
+#: Run length of the live run, s of stand time: long enough that the event stream (polled
+#: every 0.2 s by the service) delivers several batches while it runs in lockstep.
+LIVE_DURATION_S = 5.0
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def wait_for(condition, timeout_s: float = PAGE_TIMEOUT_S, what: str = "condition"):  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"{what}: not within {timeout_s} s")
+
+
+def upload_run(server: Server) -> str:
+    t = np.arange(500) * 1e-3
+    text = format_run({"time_s": t, "current_A": 0.1 * np.sin(20 * t),
+                       "position_rad": np.cos(20 * t)})
+    with server.client() as client:
+        answer = client.post("/runs/upload", files={"file": ("bench.csv", text, "text/csv")})
+    assert answer.status_code == 201, answer.text
+    return str(answer.json()["id"])
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    with serve(tmp_path_factory.mktemp("dashboard")) as running:
+        yield running
+
+
+def test_dashboard_lists_runs_and_plots_a_run_live(server: Server, tmp_path: Path) -> None:
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    stored = upload_run(server)
+    with chromium(tmp_path / "profile") as driver:
+        driver.get(server.base_url + "/")  # type: ignore[attr-defined]
+        find = driver.find_element  # type: ignore[attr-defined]
+        wait_for(lambda: find(By.TAG_NAME, "body").get_attribute("data-ready"), what="page ready")
+        rows = driver.find_elements(By.CSS_SELECTOR, "#runs tbody tr")  # type: ignore[attr-defined]
+        assert stored in [row.get_attribute("data-id") for row in rows]
+
+        # The service has a key: the page asks for it, and starting without it is refused.
+        assert find(By.ID, "key-box").is_displayed()
+        Select(find(By.ID, "experiment")).select_by_value("seed000_no_load")
+        duration = find(By.ID, "duration")
+        duration.clear()
+        duration.send_keys(str(LIVE_DURATION_S))
+        find(By.ID, "start").click()
+        wait_for(lambda: "key" in find(By.ID, "control-note").text, what="refusal without key")
+        find(By.ID, "key").send_keys(server.api_key)
+        find(By.ID, "key-save").click()
+        find(By.ID, "start").click()
+
+        # Watch the live canvas: it must be redrawn with more points while the run runs.
+        canvas = find(By.ID, "live")
+        seen: list[tuple[int, int]] = []  # (updates, points) while the state was 'running'
+        deadline = time.monotonic() + RUN_TIMEOUT_S
+        while (state := canvas.get_attribute("data-state")) not in ("done", "failed", "aborted"):
+            assert time.monotonic() < deadline, f"run not over in {RUN_TIMEOUT_S} s ({state})"
+            if state == "running":
+                seen.append((int(canvas.get_attribute("data-updates")),
+                             int(canvas.get_attribute("data-points"))))
+            time.sleep(0.05)
+        assert state == "done"
+        updates = sorted({u for u, _ in seen if u > 0})
+        assert len(updates) >= 2, f"live plot redrawn {updates} times during the run"
+        points = [p for u, p in seen if u > 0]
+        assert points[-1] > points[0], "the live plot did not grow during the run"
+        if os.environ.get("STAND_SCREENSHOTS"):  # refresh the README's picture on demand
+            run_id = canvas.get_attribute("data-run")
+            row = wait_for(lambda: driver.find_elements(  # type: ignore[attr-defined]
+                By.CSS_SELECTOR, f'#runs tbody tr[data-id="{run_id}"]'))
+            row[0].click()
+            wait_for(lambda: int(find(By.ID, "run-plot").get_attribute("data-points")) > 0)
+            driver.save_screenshot(str(tmp_path / "dashboard.png"))  # type: ignore[attr-defined]
+            shutil.copy(tmp_path / "dashboard.png", ROOT / "docs" / "dashboard.png")
+
+
+@pytest.mark.parametrize(("path", "rendered"), [
+    ("/docs", ".swagger-ui .opblock"),  # one block per route, drawn by swagger-ui-bundle.js
+    ("/redoc", ".api-content h1"),  # the API's title, drawn by redoc.standalone.js
+])
+def test_docs_render_offline(server: Server, tmp_path: Path, path: str, rendered: str) -> None:
+    from selenium.webdriver.common.by import By
+
+    with chromium(tmp_path / "profile") as driver:
+        driver.get(server.base_url + path)  # type: ignore[attr-defined]
+        found = wait_for(lambda: driver.find_elements(By.CSS_SELECTOR, rendered),  # type: ignore[attr-defined]
+                         what=f"{path} rendered")
+        assert "motorstand" in driver.page_source  # type: ignore[attr-defined]
+        assert len(found) >= 1
