@@ -59,6 +59,15 @@ class DriveConfig:
             raise InputError(f"drive mode must be one of {', '.join(DRIVE_MODES)}, not {self.mode!r}")
 
 
+def tpdo_objects(od: canopen.ObjectDictionary) -> tuple[list[int], list[int]]:
+    """The objects the master maps into TPDO1 and TPDO2 of a drive with object dictionary
+    ``od``: position and current actual; velocity actual (and voltage actual when the
+    drive has 0x2001)."""
+    second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if cia402.VOLTAGE_ACTUAL in od
+                                         else [])
+    return [cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL], second
+
+
 class Drive:
     """A remote CiA 402 drive on the master's network."""
 
@@ -136,9 +145,8 @@ class Drive:
         target = cia402.TARGET_OBJECT[self.config.mode][0]
         self.rpdo_cob_id, self.rpdo = self._map(RPDO_COMM, RPDO_MAP, [cia402.CONTROLWORD, target])
         self._unmap(RPDO_COMM + 1)
-        self.tpdos = [self._map(TPDO_COMM, TPDO_MAP, [cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL])]
-        second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if self.has(cia402.VOLTAGE_ACTUAL)
-                                             else [])
+        first, second = tpdo_objects(self.od)
+        self.tpdos = [self._map(TPDO_COMM, TPDO_MAP, first)]
         if self.config.velocity:
             self.tpdos.append(self._map(TPDO_COMM + 1, TPDO_MAP + 1, second))
         else:

@@ -253,13 +253,17 @@ class StandController:
         ``on_chunk(columns)``: new rows of the current run, run-file columns.
     stop : threading.Event or None
         Set it to stop; the drives are quick-stopped and the samples so far kept.
+    trace_suffix : {'.log', '.asc', '.blf'}
+        Format of each run's raw trace (candump, Vector ASCII, Vector binary).
     """
 
     def __init__(self, bus: StandBus, time_mode: str = "lockstep",
                  progress: Callable[[float], None] | None = None,
                  on_chunk: Callable[[Mapping[str, np.ndarray]], None] | None = None,
-                 stop: threading.Event | None = None, chunk_samples: int = CHUNK_SAMPLES) -> None:
+                 stop: threading.Event | None = None, chunk_samples: int = CHUNK_SAMPLES,
+                 trace_suffix: str = TRACE_SUFFIX) -> None:
         self.bus = bus
+        self.trace_suffix = trace_suffix
         self.time_mode = time_mode
         self.progress = progress
         self.on_chunk = on_chunk
@@ -278,7 +282,7 @@ class StandController:
 
     def run_experiment(self, experiment: ExperimentProfile | str,
                        out_dir: str | Path | None) -> ExperimentResult:
-        """Run every run of ``experiment``; write ``<run>.csv`` and ``<run>.log`` to ``out_dir``."""
+        """Run every run of ``experiment``; write ``<run>.csv`` and its trace to ``out_dir``."""
         if isinstance(experiment, str):
             experiment = load_experiment(experiment)
         runs = plan(experiment)  # limits checked for all runs before anything moves
@@ -305,7 +309,7 @@ class StandController:
         """One run: set up the drives, send the commands one per SYNC, record, stop safely."""
         check_limits(procedure, drives)
         out = Path(out_dir) if out_dir is not None else None
-        trace = str(out / f"{procedure.name}{TRACE_SUFFIX}") if out is not None else None
+        trace = str(out / f"{procedure.name}{self.trace_suffix}") if out is not None else None
         self.current = {"name": procedure.name, "samples": procedure.samples, "done": 0}
         targets = np.vstack([port.values for port in procedure.commands])
 

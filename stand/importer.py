@@ -1,4 +1,9 @@
-"""Import measured data from MAT or CSV files into runs (CONTRACT §1), by column mapping.
+"""Import measured data into runs (CONTRACT §1), by column mapping.
+
+Sources: MAT files, delimited text (:mod:`stand.delimited`: decimal comma, units row,
+skipped preamble), ASAM MDF 4 (:mod:`stand.mdf`), and CAN traces (``.log``, ``.asc``,
+``.blf``), whose drive PDOs the bus package decodes into run columns (or any signals,
+given a DBC).
 
 A mapping says which run column comes from which source expression::
 
@@ -8,39 +13,49 @@ An expression is a product of factors joined by ``*`` or ``/``, with an optional
 ``-``. A factor is a number (``1000``, ``2.5e-3``), a variable of the file (a MAT
 variable, ``struct.field`` inside a MAT struct, or a CSV column by its header name), or a
 column or row of a 2-D variable (``data[:,3]``, ``data[3,:]``; indices count from 0, as
-in numpy; negative indices count from the end). Variables with one element are scalars
-(``gtau``); every other factor must be a vector of the run's length. A name that is not a
-plain identifier (a CSV header with spaces) may be quoted: ``"Motor current (mA)"/1000``.
+in numpy; negative indices count from the end), the constant ``pi``, or a function of
+:data:`FUNCTIONS` applied to an expression (``deg2rad(angle)``, ``sqrt(x*x)``).
+Variables with one element are scalars (``gtau``); every other factor must be a vector of
+the run's length. A name that is not a plain identifier (a CSV header with spaces) may be
+quoted: ``"Motor current (mA)"/1000``.
 
 A CSV file's columns are its variables; the whole numeric table is also the 2-D variable
 ``data`` (unless a column has that name), so ``data[:,3]`` works for files without a header.
 
-Reading (:func:`load_variables`) is the only I/O here; :func:`evaluate` and
-:func:`map_columns` are pure. Errors name the file and the variable.
+Without a mapping, every run column the file holds by name maps to itself (MF4 files this
+tool wrote, decoded traces). Reading (:func:`load_source`) is the only I/O here;
+:func:`evaluate` and :func:`map_columns` are pure. Errors name the file and the variable.
 """
 
 from __future__ import annotations
 
-import csv
-import io
+import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from stand.delimited import NUMBER as _NUMBER
+from stand.delimited import TABLE_VARIABLE as TABLE_VARIABLE  # re-exported
 from stand.errors import InputError, RunFileError
-from stand.runfile import COLUMNS, Run, RunKind, check_columns, read_text
+from stand.runfile import COLUMNS, Run, RunKind, check_columns
+from stand.sources import ReadOptions, load_source
 
-#: The 2-D variable that holds a whole CSV table.
-TABLE_VARIABLE = "data"
-#: File suffixes read as MAT and as delimited text.
-MAT_SUFFIXES = (".mat",)
-CSV_SUFFIXES = (".csv", ".txt", ".tsv", ".dat")
 #: Most variable names an error message lists.
 MAX_LISTED = 30
-
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+#: Sample rates a motor stand records at, Hz: below, the mechanical time constants (10 ms
+#: to 1 s) are not resolved; above, no drive reports position and current that fast. A
+#: rate outside is most often a time column in ms or µs read as s.
+PLAUSIBLE_RATE_HZ = (20.0, 200e3)
+#: Constants and functions a --map expression may use (element-wise).
+CONSTANTS = {"pi": math.pi}
+FUNCTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "sin": np.sin, "cos": np.cos, "tan": np.tan, "sqrt": np.sqrt, "abs": np.abs,
+    "exp": np.exp, "log": np.log, "log10": np.log10, "deg2rad": np.deg2rad,
+    "rad2deg": np.rad2deg, "unwrap": np.unwrap,
+}
+_CALL = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\((?P<inner>.*)\)$")
 _INDEXED = re.compile(r"^(?P<name>.+?)\s*\[\s*(?P<rows>[^,\]]*)\s*,\s*(?P<cols>[^,\]]*)\s*\]$")
 _INDEX = re.compile(r"^[+-]?\d+$")
 
@@ -71,9 +86,9 @@ def _split_factors(expression: str) -> list[tuple[str, str]]:
             quote = "" if char == quote else quote
         elif char in "\"'":
             quote = char
-        elif char == "[":
+        elif char in "[(":
             depth += 1
-        elif char == "]":
+        elif char in "])":
             depth -= 1
         elif char in "*/" and depth == 0:
             factors.append((operator, expression[start:pos].strip()))
@@ -110,6 +125,15 @@ def _factor(text: str, variables: Mapping[str, np.ndarray], source: str) -> floa
         raise InputError(f"{source}: empty factor in a --map expression")
     if _NUMBER.match(text):
         return float(text)
+    if text in CONSTANTS and text not in variables:
+        return CONSTANTS[text]
+    call = _CALL.match(text)
+    if call and call["name"] in FUNCTIONS and call["name"] not in variables:
+        with np.errstate(all="ignore"):  # non-finite results are caught by evaluate()
+            return FUNCTIONS[call["name"]](np.asarray(_product(call["inner"], variables, source)))
+    if call and call["name"] not in variables:
+        raise InputError(f"{source}: unknown function {call['name']!r} in {text!r}; known: "
+                         f"{', '.join(FUNCTIONS)}")
     match = _INDEXED.match(text)
     if match and not (text[0] in "\"'" and text[-1] == text[0]):
         name = match["name"].strip()
@@ -142,24 +166,8 @@ def _factor(text: str, variables: Mapping[str, np.ndarray], source: str) -> floa
     return value
 
 
-def evaluate(expression: str, variables: Mapping[str, np.ndarray], source: str) -> np.ndarray:
-    """The vector a mapping expression denotes (see the module docstring).
-
-    Parameters
-    ----------
-    expression : str
-        E.g. ``vir*gtau``, ``qm*1000``, ``data[:,6]``, ``-x/2``.
-    variables : mapping of str to ndarray
-        The file's variables (:func:`load_variables`).
-    source : str
-        File name for messages.
-
-    Raises
-    ------
-    InputError
-        Unknown variable, bad index, vectors of different lengths, a non-numeric variable,
-        non-finite values, or an expression without any vector.
-    """
+def _product(expression: str, variables: Mapping[str, np.ndarray], source: str) -> float | np.ndarray:
+    """The value of a product of factors (a number or a vector)."""
     text = expression.strip()
     sign = 1.0
     if text.startswith("-"):
@@ -180,6 +188,28 @@ def evaluate(expression: str, variables: Mapping[str, np.ndarray], source: str) 
                 result = result * value if operator == "*" else result / value
         except TypeError:
             raise InputError(f"{source}: {factor_text} in {expression!r} is not numeric") from None
+    return result
+
+
+def evaluate(expression: str, variables: Mapping[str, np.ndarray], source: str) -> np.ndarray:
+    """The vector a mapping expression denotes (see the module docstring).
+
+    Parameters
+    ----------
+    expression : str
+        E.g. ``vir*gtau``, ``qm*1000``, ``data[:,6]``, ``-x/2``.
+    variables : mapping of str to ndarray
+        The file's variables (:func:`load_variables`).
+    source : str
+        File name for messages.
+
+    Raises
+    ------
+    InputError
+        Unknown variable, bad index, vectors of different lengths, a non-numeric variable,
+        non-finite values, or an expression without any vector.
+    """
+    result = _product(expression, variables, source)
     if not isinstance(result, np.ndarray):
         raise InputError(
             f"{source}: {expression!r} is a single number; a run column needs a vector "
@@ -258,96 +288,29 @@ def _describe(mapping: Sequence[tuple[str, str]]) -> str:
     return ", ".join(f"{t}={e}" for t, e in mapping) or "nothing"
 
 
-def _mat_variables(path: Path) -> dict[str, np.ndarray]:
-    from scipy import io as sio
-
-    try:
-        raw = sio.loadmat(str(path), simplify_cells=True)
-    except NotImplementedError as exc:  # MATLAB v7.3 files are HDF5
-        raise InputError(
-            f"{path}: MATLAB v7.3 (HDF5) files are not supported; save with "
-            "save(..., '-v7') or export CSV"
-        ) from exc
-    except (ValueError, TypeError, OSError) as exc:
-        raise InputError(f"{path}: not a readable MAT file ({exc})") from exc
-    variables: dict[str, np.ndarray] = {}
-
-    def add(prefix: str, value: object) -> None:
-        if isinstance(value, dict):
-            for key, item in value.items():
-                add(f"{prefix}.{key}", item)
-            return
-        try:
-            array = np.asarray(value)
-        except ValueError:  # a ragged cell array
-            array = np.asarray(None, dtype=object)
-        variables[prefix] = array.astype(float) if array.dtype.kind in "biuf" else array
-
-    for name, value in raw.items():
-        if not name.startswith("__"):
-            add(name, value)
-    return variables
+def load_variables(path: str | Path, options: ReadOptions | None = None) -> dict[str, np.ndarray]:
+    """The variables of a file (see :func:`stand.sources.load_source`)."""
+    return load_source(path, options).variables
 
 
-def _csv_variables(path: Path) -> dict[str, np.ndarray]:
-    text = read_text(path)
-    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
-        raise InputError(f"{path}: no data rows")
-    try:
-        delimiter = csv.Sniffer().sniff(lines[0] + "\n" + "\n".join(lines[1:5]), ",;\t ").delimiter
-    except csv.Error:
-        delimiter = ","
-    rows = list(csv.reader(io.StringIO("\n".join(lines)), delimiter=delimiter,
-                           skipinitialspace=True))
-    first = [cell.strip() for cell in rows[0] if cell.strip() or delimiter != " "]
-    has_header = not all(_NUMBER.match(cell) or cell.lower() in ("nan", "inf", "-inf")
-                         for cell in first)
-    header = first if has_header else [str(k) for k in range(len(first))]
-    body = rows[1:] if has_header else rows
-    table = np.empty((len(body), len(header)))
-    for row_number, row in enumerate(body, start=2 if has_header else 1):
-        cells = [cell.strip() for cell in row if cell.strip() or delimiter != " "]
-        if len(cells) != len(header):
-            raise InputError(
-                f"{path}: row {row_number} has {len(cells)} cells; the header has {len(header)}"
-            )
-        for col, cell in enumerate(cells):
-            try:
-                table[row_number - (2 if has_header else 1), col] = float(cell)
-            except ValueError:
-                raise InputError(
-                    f"{path}: row {row_number}, column {header[col]!r}: {cell!r} is not a number"
-                ) from None
-    variables = {name: table[:, k] for k, name in enumerate(header)} if has_header else {}
-    variables.setdefault(TABLE_VARIABLE, table)
-    return variables
+def default_mapping(variables: Mapping[str, np.ndarray], kind: RunKind) -> list[tuple[str, str]]:
+    """Each column of a ``kind`` run that ``variables`` holds by name, mapped to itself, in
+    the file's order."""
+    columns = {*COLUMNS[kind][0], *COLUMNS[kind][1]}
+    return [(name, name) for name in variables if name in columns]
 
 
-def load_variables(path: str | Path) -> dict[str, np.ndarray]:
-    """The variables of a MAT or CSV file; numeric ones as float arrays.
-
-    MAT files: every numeric variable (``struct.field`` for fields of structs; MATLAB
-    column and row vectors become 1-D, 1×1 become scalars). CSV files: one 1-D variable per
-    header column, and the whole table as ``data``.
-
-    Raises
-    ------
-    InputError
-        A missing or unreadable file, an unknown suffix, a non-numeric CSV cell.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    suffix = path.suffix.lower()
-    if suffix in MAT_SUFFIXES:
-        return _mat_variables(path)
-    if suffix in CSV_SUFFIXES:
-        return _csv_variables(path)
-    raise InputError(
-        f"{path}: unknown file type {suffix or '(none)'}; expected "
-        f"{', '.join(MAT_SUFFIXES + CSV_SUFFIXES)}"
-    )
+def rate_warnings(run: Run) -> list[str]:
+    """A warning when the run's sample rate is implausible for a motor stand
+    (:data:`PLAUSIBLE_RATE_HZ`), naming the likely cause."""
+    rate = 1.0 / run.dt_s
+    low, high = PLAUSIBLE_RATE_HZ
+    if low <= rate <= high:
+        return []
+    cause = ("is time in ms or µs? map time_s=t/1000 (ms) or t/1e6 (µs)" if rate < low
+             else "is time in s while the values are ms apart? check the time column's unit")
+    return [f"{run.source}: the sample rate {rate:.4g} Hz (period {run.dt_s:.4g} s) is "
+            f"implausible for a motor stand (expected {low:g} Hz to {high:g} Hz): {cause}"]
 
 
 def import_run(
@@ -355,9 +318,22 @@ def import_run(
     mapping: Sequence[tuple[str, str]],
     kind: RunKind = "single",
     period_s: float | None = None,
+    options: ReadOptions | None = None,
 ) -> Run:
-    """Read ``path`` (MAT or CSV) and map its variables to a validated run of ``kind``.
+    """Read ``path`` and map its variables to a validated run of ``kind``.
 
-    See :func:`map_columns` for the arguments and errors.
+    An empty ``mapping`` maps every run column the file holds by name
+    (:func:`default_mapping`). ``Run.meta`` holds the mapping, the file's metadata, notes
+    on how it was read and ``warnings`` (:func:`rate_warnings`). See :func:`map_columns`
+    for the arguments and errors.
     """
-    return map_columns(load_variables(path), mapping, kind, str(path), period_s)
+    source = load_source(path, options)
+    if not mapping:
+        mapping = default_mapping(source.variables, kind)
+        if not mapping:
+            raise InputError(f"{path}: no variable is named after a {kind} run column; give "
+                             "--map TARGET=EXPR (see --list for the variables)")
+    run = map_columns(source.variables, mapping, kind, str(path), period_s)
+    meta = {**run.meta, "file_meta": source.meta, "notes": source.notes,
+            "warnings": [*source.warnings, *rate_warnings(run)]}
+    return Run(run.columns, run.source, meta)

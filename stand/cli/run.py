@@ -1,6 +1,7 @@
 """``stand run EXPERIMENT -o DIR``: run an experiment profile over the CAN bus.
 
-Writes one run file (CONTRACT §1) and one raw trace (candump ``.log``) per run into DIR.
+Writes one run file (CONTRACT §1) and one raw trace (candump ``.log``, or ``.asc``/``.blf``
+with ``--trace-format``) per run into DIR.
 On the ``virtual`` interface the profile's drives are simulated in this process unless
 ``--no-simulate`` is given; on ``socketcan`` or another interface the drives are real or
 simulated by ``python -m bus.simstand`` in another process.
@@ -32,6 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="seed of the simulated sensor noise")
     parser.add_argument("--repeats", type=int, help="override the profile's repeats")
     parser.add_argument("--duration", type=float, help="override the profile's run length, s")
+    parser.add_argument("--trace-format", choices=["log", "asc", "blf"], default="log",
+                        help="raw trace of each run: candump .log, Vector .asc or .blf")
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
@@ -64,7 +67,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     progress.last = -1  # type: ignore[attr-defined]
     with StandBus(profile, config, simulate=args.simulate, seed=args.seed) as bus:
-        controller = StandController(bus, time_mode, progress=progress)
+        controller = StandController(bus, time_mode, progress=progress,
+                                      trace_suffix=f".{args.trace_format}")
         result = controller.run_experiment(experiment, args.output)
         status = bus.status()
     return {"experiment": result.name, "procedure": result.procedure, "output": str(args.output),

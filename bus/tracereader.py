@@ -1,0 +1,296 @@
+"""Reading CAN traces back: drive TPDOs aligned by SYNC, or any frames through a DBC.
+
+Traces are read with python-can's log readers (``.log`` candump, ``.asc``, ``.blf``).
+
+:func:`decode_trace` rebuilds what the master recorded: each SYNC opens a window, the TPDOs
+that follow it in the trace fill it, and the same :class:`~bus.sampler.Sampler` that
+recorded the run counts what is lost or duplicated and converts raw values to SI units.
+Which objects a TPDO carries comes, in this order, from
+
+1. the trace's own SDO traffic (expedited downloads to 0x1800-0x1803 and 0x1A00-0x1A03,
+   and the answers to expedited uploads of them), as a master configuring the drive wrote it;
+2. the drive's EDS, where it gives a non-empty default mapping;
+3. the mapping motorstand's master writes to a drive of that EDS (:func:`bus.drive.tpdo_objects`).
+
+The SYNC period is the communication cycle period 0x1006 written over SDO when the trace
+has it, else the one given, else the median spacing of the SYNC stamps (which is wall time,
+not stand time, for a lockstep run: the result warns).
+
+:func:`decode_dbc` decodes every frame a DBC describes with cantools, one variable per
+signal (``Message.Signal``) and its times (``Message.t``, s from the first frame).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import cast
+
+import can
+import canopen
+import numpy as np
+
+from bus.drive import TPDO_COMM, TPDO_MAP, tpdo_objects
+from bus.eds import Scaling, load_od
+from bus.pdo import COB_ID_INVALID, Layout, entries_for
+from bus.sampler import Sampler, Samples
+from bus.sync import SYNC_COB_ID
+from bus.trace import TRACE_SUFFIXES
+from stand.errors import InputError
+
+#: SDO server-to-client and client-to-server COB-ID bases (CiA 301 default connection set).
+SDO_TX, SDO_RX = 0x580, 0x600
+#: TPDO1-4 default COB-ID bases.
+TPDO_BASES = (0x180, 0x280, 0x380, 0x480)
+#: Communication cycle period object (CiA 301), µs.
+CYCLE_PERIOD = 0x1006
+#: SDO command specifiers (CiA 301 §7.2.4.3), from canopen.
+_CCS_DOWNLOAD = canopen.sdo.constants.REQUEST_DOWNLOAD >> 5
+_CCS_UPLOAD = canopen.sdo.constants.REQUEST_UPLOAD >> 5
+_SCS_UPLOAD = canopen.sdo.constants.RESPONSE_UPLOAD >> 5
+
+
+def read_frames(path: str | Path) -> list[can.Message]:
+    """Every frame of a ``.log``, ``.asc`` or ``.blf`` trace, in file order.
+
+    Raises
+    ------
+    InputError
+        A missing file, another suffix, or a file python-can cannot parse.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if path.suffix.lower() not in TRACE_SUFFIXES:
+        raise InputError(f"{path}: a CAN trace must end in {', '.join(TRACE_SUFFIXES)}")
+    try:
+        with can.LogReader(str(path)) as reader:
+            frames = list(reader)
+    except (ValueError, OSError, can.CanError, IndexError, KeyError) as exc:
+        raise InputError(f"{path}: not a readable {path.suffix} trace "
+                         f"({type(exc).__name__}: {exc})") from exc
+    if not frames:
+        raise InputError(f"{path}: the trace holds no frames")
+    return frames
+
+
+def sdo_values(frames: list[can.Message]) -> dict[int, dict[tuple[int, int], int]]:
+    """Node id → ``{(index, subindex): value}`` of every expedited SDO download request and
+    every expedited upload answer in ``frames`` (the last one wins)."""
+    values: dict[int, dict[tuple[int, int], int]] = {}
+    for msg in frames:
+        can_id, data = msg.arbitration_id, bytes(msg.data)
+        if msg.is_extended_id or len(data) < 8 or can_id & 0x7F == 0:
+            continue
+        base, node = can_id & 0x780, can_id & 0x7F
+        command = data[0]
+        expedited = command & canopen.sdo.constants.EXPEDITED
+        if not expedited or (base, command >> 5) not in ((SDO_RX, _CCS_DOWNLOAD), (SDO_TX, _SCS_UPLOAD)):
+            continue
+        size = 4 - ((command >> 2) & 0x3) if command & canopen.sdo.constants.SIZE_SPECIFIED else 4
+        key = (int.from_bytes(data[1:3], "little"), data[3])
+        values.setdefault(node, {})[key] = int.from_bytes(data[4:4 + size], "little")
+    return values
+
+
+def _default(od: canopen.ObjectDictionary, index: int, subindex: int) -> int:
+    var = od.get_variable(index, subindex)
+    try:
+        return int(var.default or 0) if var is not None else 0
+    except (TypeError, ValueError):
+        return 0
+
+
+def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
+           seen: set[int]) -> Iterator[tuple[int, Layout]]:
+    """(COB-ID, layout) of each TPDO of ``node`` whose COB-ID occurs in the trace."""
+    standard = tpdo_objects(od)
+    for p in range(len(TPDO_BASES)):
+        comm, mapping = TPDO_COMM + p, TPDO_MAP + p
+        cob = sdo.get((comm, 1), _default(od, comm, 1) or TPDO_BASES[p] + node)
+        if cob & COB_ID_INVALID or (cob & 0x7FF) not in seen:
+            continue
+        if (mapping, 0) in sdo:
+            entries = [sdo.get((mapping, k), 0) for k in range(1, sdo[(mapping, 0)] + 1)]
+        elif _default(od, mapping, 0):
+            entries = [_default(od, mapping, k) for k in range(1, _default(od, mapping, 0) + 1)]
+        elif p < len(standard):
+            entries = entries_for(od, standard[p])
+        else:
+            continue
+        yield cob & 0x7FF, Layout.from_entries(od, entries)
+
+
+@dataclass
+class DecodedTrace:
+    """The samples a trace holds, and how they were found.
+
+    Attributes
+    ----------
+    samples : Samples
+        SYNC-aligned samples of each drive, SI units (NaN where a TPDO is missing).
+    period_s : float
+        SYNC period, s.
+    period_from : str
+        ``sdo 0x1006``, ``given`` or ``sync stamps``.
+    mapping_from : dict
+        Node id → ``sdo``, ``eds`` or ``motorstand master`` (where its TPDO mapping came from).
+    warnings : list of str
+    """
+
+    samples: Samples
+    period_s: float
+    period_from: str
+    mapping_from: dict[int, str]
+    warnings: list[str] = field(default_factory=list)
+
+
+def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
+                 eds: str | Path | None = None, node: int | None = None,
+                 period_s: float | None = None) -> DecodedTrace:
+    """The drive samples of a CAN trace (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.log``, ``.asc`` or ``.blf`` trace.
+    scaling : Scaling, optional
+        Units of the drives' raw values (default: :class:`~bus.eds.Scaling` defaults); the
+        encoder resolution and the rated current are not on the bus.
+    eds : path, optional
+        The drives' EDS (default: the simulated drive's).
+    node : int, optional
+        Decode this node only (default: every node with TPDOs in the trace).
+    period_s : float, optional
+        SYNC period, s, when the trace does not carry 0x1006.
+
+    Raises
+    ------
+    InputError
+        An unreadable trace, no SYNC, no TPDO of a known node, or a bad ``node``/``period_s``.
+    """
+    frames = read_frames(path)
+    if node is not None and not 1 <= node <= 127:
+        raise InputError(f"node must be a CANopen node id 1..127, got {node}")
+    if period_s is not None and not period_s > 0:
+        raise InputError(f"period_s must be > 0 s, got {period_s}")
+    syncs = [m for m in frames if m.arbitration_id == SYNC_COB_ID and not m.is_extended_id]
+    if not syncs:
+        raise InputError(f"{path}: no SYNC frame (COB-ID 0x080) in the trace; samples are "
+                         "aligned by SYNC")
+    seen = {m.arbitration_id for m in frames if not m.is_extended_id}
+    sdo = sdo_values(frames)
+    candidates = sorted({cob - base for cob in seen for base in TPDO_BASES
+                         if 1 <= cob - base <= 127} | {n for n, v in sdo.items()
+                                                        if any(k[0] in range(TPDO_COMM, TPDO_COMM + 4)
+                                                               for k in v)})
+    nodes = [node] if node is not None else candidates
+    tpdos: dict[int, tuple[int, int, Layout]] = {}
+    node_ids: list[int] = []
+    mapping_from: dict[int, str] = {}
+    for n in nodes:
+        od = load_od(eds, n)
+        found = list(_tpdos(n, od, sdo.get(n, {}), seen))
+        if not found or any(cob in tpdos for cob, _ in found):
+            continue
+        own = sdo.get(n, {})
+        mapping_from[n] = ("sdo" if any((TPDO_MAP + p, 0) in own for p in range(4))
+                           else "eds" if _default(od, TPDO_MAP, 0) else "motorstand master")
+        for p, (cob, layout) in enumerate(found):
+            tpdos[cob] = (len(node_ids), p, layout)
+        node_ids.append(n)
+    if not node_ids:
+        raise InputError(f"{path}: no TPDO of {'node ' + str(node) if node else 'any node'} "
+                         f"in the trace (COB-IDs seen: {', '.join(f'0x{c:03X}' for c in sorted(seen))})")
+    warnings: list[str] = []
+    cycles = [v[(CYCLE_PERIOD, 0)] for v in sdo.values() if v.get((CYCLE_PERIOD, 0))]
+    if cycles:
+        period, period_from = cycles[-1] * 1e-6, "sdo 0x1006"
+    elif period_s is not None:
+        period, period_from = float(period_s), "given"
+    else:
+        stamps = np.array([m.timestamp for m in syncs])
+        period = float(np.median(np.diff(stamps))) if len(stamps) > 1 else math.nan
+        period_from = "sync stamps"
+        warnings.append(f"the SYNC period {period:.6g} s is the median spacing of the SYNC "
+                        "stamps: wall time, not stand time, if the run was in lockstep; give "
+                        "the period when it is known")
+        if not period > 0:
+            raise InputError(f"{path}: one SYNC and no period; give the SYNC period")
+    # The trace's order says which SYNC a TPDO answers: each TPDO is judged against the
+    # stamp of the SYNC before it, and no synchronous window bounds the delay (a lockstep
+    # run's stamps are wall time).
+    sampler = Sampler(tpdos, node_ids, [scaling or Scaling()] * len(node_ids), len(syncs),
+                      period, window_s=math.inf)
+    k, stamp = -1, 0.0
+    for msg in frames:
+        can_id = msg.arbitration_id
+        if msg.is_extended_id:
+            continue
+        if can_id == SYNC_COB_ID:
+            k, stamp = k + 1, msg.timestamp
+            counter = msg.data[0] if len(msg.data) else 0
+            sampler.open(k, stamp, counter)
+            sampler.sent(stamp, counter)
+        elif can_id in tpdos:
+            sampler.on_tpdo(can_id, bytearray(msg.data), stamp)
+    sampler.close()
+    samples = sampler.result(len(syncs))
+    if not samples.complete:
+        warnings.append(f"TPDOs missing in the trace: {samples.lost} (node: count); those "
+                        "samples are left out")
+    return DecodedTrace(samples, period, period_from, mapping_from, warnings)
+
+
+def decode_dbc(path: str | Path, dbc: str | Path) -> dict[str, np.ndarray]:
+    """Every signal of the frames of trace ``path`` that the DBC ``dbc`` describes.
+
+    Returns ``{"Message.Signal": values, "Message.t": times_s}`` (times from the trace's
+    first frame, s); a signal name found in one message only is also given bare.
+
+    Raises
+    ------
+    InputError
+        An unreadable trace or DBC, or a trace with no frame the DBC knows.
+    """
+    import cantools
+
+    try:
+        database = cantools.database.load_file(str(dbc))
+    except (OSError, cantools.database.UnsupportedDatabaseFormatError) as exc:
+        raise InputError(f"{dbc}: not a readable DBC file ({exc})") from exc
+    if not isinstance(database, cantools.database.can.Database):
+        raise InputError(f"{dbc}: a diagnostics database, not a CAN database (DBC, ARXML, KCD, SYM)")
+    frames = read_frames(path)
+    t0 = frames[0].timestamp
+    columns: dict[str, list[float]] = {}
+    for msg in frames:
+        try:
+            message = database.get_message_by_frame_id(msg.arbitration_id)
+        except KeyError:
+            continue
+        try:
+            decoded = cast(dict[str, float], message.decode(bytes(msg.data), decode_choices=False))
+        except (cantools.database.DecodeError, ValueError) as exc:
+            raise InputError(f"{path}: frame 0x{msg.arbitration_id:X} at {msg.timestamp:.6f} s "
+                             f"does not decode as {message.name}: {exc}") from exc
+        columns.setdefault(f"{message.name}.t", []).append(msg.timestamp - t0)
+        for name, value in decoded.items():
+            columns.setdefault(f"{message.name}.{name}", []).append(float(value))
+    if not columns:
+        raise InputError(f"{path}: no frame of the trace is described by {dbc}")
+    variables = {name: np.asarray(values) for name, values in columns.items()}
+    bare: dict[str, list[str]] = {}
+    for name in variables:
+        _, _, signal = name.partition(".")
+        if signal != "t":
+            bare.setdefault(signal, []).append(name)
+    for signal, names in bare.items():
+        if len(names) == 1 and signal not in variables:
+            variables[signal] = variables[names[0]]
+    return variables
+
+
+__all__ = ["DecodedTrace", "decode_dbc", "decode_trace", "read_frames", "sdo_values"]

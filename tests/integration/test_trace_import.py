@@ -1,0 +1,139 @@
+"""CAN traces back into run files: a run's trace (in the format ``stand run --trace-format``
+chooses) read back by ``stand import`` gives the very samples the run wrote (same columns,
+bit-equal after the CSV's 9 significant digits), in each of python-can's formats; the
+trace's own SDO traffic gives the mapping and the period when it has them; a DBC decodes
+frames through cantools.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import can
+import cantools
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal
+
+from bus import cia402
+from bus.adapters import BusConfig
+from bus.stand_bus import StandBus
+from bus.tracereader import decode_dbc, decode_trace, sdo_values
+from stand.cli import main
+from stand.controller import ExperimentProfile, StandController
+from stand.errors import InputError
+from stand.runfile import read_run
+
+MOTOR = "crouzet_82800502"
+
+
+#: Heartbeat period, s: long enough that a loaded machine never starves a heartbeat into an
+#: aborted run (heartbeats are tested in test_bus_faults, not here).
+CALM_HEARTBEAT_S = 1.0
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """One 1 s no-load run on the virtual bus per trace format, as ``stand run`` makes it."""
+    experiment = ExperimentProfile(name="trace", procedure="no_load", motor=MOTOR, duration_s=1.0,
+                                   period_s=1e-3)
+    out: dict[str, Path] = {}
+    for fmt in ("log", "asc", "blf"):
+        folder = tmp_path_factory.mktemp(fmt)
+        with StandBus(MOTOR, BusConfig("virtual", f"trace-import-{fmt}"), simulate=True, seed=5,
+                      heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+            record = StandController(bus, trace_suffix=f".{fmt}").run_experiment(experiment, folder).runs[0]
+        assert record.complete and record.trace_path == str(folder / f"no_load_1.{fmt}")
+        out[fmt] = folder
+    return out
+
+
+@pytest.mark.parametrize("fmt", ["log", "asc", "blf"])
+def test_a_run_reads_back_exactly_from_its_trace(runs: dict[str, Path], fmt: str,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    folder = runs[fmt]
+    back = folder / "back.csv"
+    assert main(["import", str(folder / f"no_load_1.{fmt}"), "-o", str(back), "--json",
+                 "--motor", MOTOR, "--period", "0.001"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["warnings"] == []
+    assert result["file_meta"]["mapping_from"] == {"1": "motorstand master"}
+    recorded, decoded = read_run(folder / "no_load_1.csv"), read_run(back)
+    assert sorted(decoded.columns) == sorted(recorded.columns)
+    assert len(decoded) == 1000
+    for name in recorded.columns:
+        assert_array_equal(decoded[name], recorded[name], err_msg=name)
+
+
+def test_without_period_or_motor_the_import_warns(runs: dict[str, Path]) -> None:
+    decoded = decode_trace(runs["log"] / "no_load_1.log")
+    assert decoded.period_from == "sync stamps"
+    assert "wall time" in decoded.warnings[0]
+
+
+def _sdo_download(node: int, index: int, subindex: int, value: int, size: int) -> can.Message:
+    command = 0x23 | ((4 - size) << 2)  # expedited download, size indicated
+    data = bytes([command]) + index.to_bytes(2, "little") + bytes([subindex]) \
+        + value.to_bytes(4, "little")
+    return can.Message(arbitration_id=0x600 + node, data=data, is_extended_id=False)
+
+
+def test_mapping_and_period_come_from_the_traces_sdo_traffic(tmp_path: Path) -> None:
+    """A foreign master maps velocity alone into TPDO1 on COB-ID 0x1A5 and sets a 2 ms
+    cycle: the decoder must follow those writes, not the defaults."""
+    node, cob = 5, 0x1A5
+    frames = [
+        _sdo_download(node, 0x1006, 0, 2000, 4),
+        _sdo_download(node, 0x1800, 1, cob | 0x8000_0000, 4),
+        _sdo_download(node, 0x1A00, 0, 0, 1),
+        _sdo_download(node, 0x1A00, 1, (cia402.VELOCITY_ACTUAL << 16) | 32, 4),
+        _sdo_download(node, 0x1A00, 0, 1, 1),
+        _sdo_download(node, 0x1800, 1, cob, 4),
+    ]
+    velocities = [0, 1000, -2500, 40000]  # raw, 1e-3 rad/s each
+    for k, raw in enumerate(velocities):
+        frames.append(can.Message(arbitration_id=0x80, data=bytes([k + 1]), is_extended_id=False))
+        frames.append(can.Message(arbitration_id=cob, data=raw.to_bytes(4, "little", signed=True),
+                                  is_extended_id=False))
+    path = tmp_path / "foreign.asc"
+    with can.Logger(str(path)) as logger:
+        for k, msg in enumerate(frames):
+            msg.timestamp = 1000.0 + 1e-4 * k
+            logger.on_message_received(msg)
+    assert sdo_values(can.LogReader(str(path)))[node][(0x1006, 0)] == 2000
+    decoded = decode_trace(path)
+    assert decoded.period_s == pytest.approx(2e-3, rel=1e-12)
+    assert decoded.period_from == "sdo 0x1006"
+    assert decoded.mapping_from == {node: "sdo"}
+    assert_array_equal(decoded.samples.drives[0].columns["velocity_rad_s"],
+                       np.array(velocities) * 1e-3)
+
+
+def test_dbc_signals_decode_through_cantools(tmp_path: Path) -> None:
+    dbc = tmp_path / "drive.dbc"
+    dbc.write_text('''VERSION ""
+BU_: DRIVE
+BO_ 291 Feedback: 4 DRIVE
+ SG_ Speed : 0|16@1- (0.01,0) [-300|300] "rad/s" Vector__XXX
+ SG_ Current : 16|16@1- (0.001,0) [-30|30] "A" Vector__XXX
+''')
+    db = cantools.database.load_file(str(dbc))
+    path = tmp_path / "dbc.blf"
+    with can.Logger(str(path)) as logger:
+        for k in range(30):
+            data = db.encode_message("Feedback", {"Speed": 0.5 * k, "Current": -0.002 * k})
+            logger.on_message_received(can.Message(timestamp=50.0 + 0.01 * k, arbitration_id=291,
+                                                   data=data, is_extended_id=False))
+    variables = decode_dbc(path, dbc)
+    assert_array_equal(variables["Feedback.Speed"], 0.5 * np.arange(30))
+    np.testing.assert_allclose(variables["Current"], -0.002 * np.arange(30), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(variables["Feedback.t"], 0.01 * np.arange(30), atol=1e-5)  # blf: 10 µs stamps
+    with pytest.raises(InputError, match="no frame of the trace is described"):
+        decode_dbc(path, _other_dbc(tmp_path))
+
+
+def _other_dbc(tmp_path: Path) -> Path:
+    other = tmp_path / "other.dbc"
+    other.write_text('VERSION ""\nBU_: X\nBO_ 1000 Other: 1 X\n SG_ A : 0|8@1+ (1,0) [0|255] "" X\n')
+    return other
