@@ -119,3 +119,38 @@ def test_docs_render_offline(server: Server, tmp_path: Path, path: str, rendered
                          what=f"{path} rendered")
         assert "motorstand" in driver.page_source  # type: ignore[attr-defined]
         assert len(found) >= 1
+
+
+def test_a_result_report_opens_with_its_figures_and_limits(server: Server, tmp_path: Path) -> None:
+    """A stored run, identified over HTTP; its report in chromium, and in the dashboard."""
+    from selenium.webdriver.common.by import By
+
+    with server.client() as client:
+        answer = client.post("/runs", json={"profile": "seed000_no_load",
+                                            "overrides": {"duration_s": 2.0, "repeats": 1}})
+        assert answer.status_code == 202, answer.text
+        run_id = answer.json()["runs"][0]
+        wait_for(lambda: client.get(f"/runs/{run_id}").json()["state"] == "done",
+                 RUN_TIMEOUT_S, "run done")
+        result = client.post("/identify", json={"run": run_id})
+        assert result.status_code == 200, result.text
+        result_id = result.json()["result_id"]
+        assert client.get(f"/results/{result_id}/report?limits=../../etc").status_code == 422
+    with chromium(tmp_path / "profile") as driver:
+        driver.get(f"{server.base_url}/results/{result_id}/report?limits=crouzet_82800502_eol")  # type: ignore[attr-defined]
+        images = driver.find_elements(By.TAG_NAME, "img")  # type: ignore[attr-defined]
+        assert len(images) == 1  # the one input run, drawn with the result
+        assert all(int(img.get_property("naturalWidth")) >= 600 for img in images)
+        # identify gives Kt/J, not Kt: an end-of-line limit on Kt is not measured, so FAIL.
+        assert driver.find_element(By.ID, "eol").text == "FAIL"  # type: ignore[attr-defined]
+        assert "Kt_over_J" in driver.page_source  # type: ignore[attr-defined]
+
+        driver.get(server.base_url + "/")  # type: ignore[attr-defined]
+        find = driver.find_element  # type: ignore[attr-defined]
+        wait_for(lambda: find(By.TAG_NAME, "body").get_attribute("data-ready"), what="page ready")
+        row = wait_for(lambda: driver.find_elements(  # type: ignore[attr-defined]
+            By.CSS_SELECTOR, f'#results tbody tr[data-id="{result_id}"]'), what="result listed")
+        row[0].click()
+        driver.switch_to.frame(find(By.ID, "result-frame"))  # type: ignore[attr-defined]
+        framed = wait_for(lambda: driver.find_elements(By.TAG_NAME, "img"), what="report in frame")  # type: ignore[attr-defined]
+        wait_for(lambda: int(framed[0].get_property("naturalWidth")) > 0, what="figure drawn")
