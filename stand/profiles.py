@@ -27,7 +27,7 @@ from stand.physics.parts import DriveParams, MotorParams, ReducerParams, SensorP
 #: The package the shipped profiles install as (``profiles/`` in the repository).
 PROFILE_PACKAGE = "stand.profile_data"
 #: Kinds of profile, each a folder of YAML files.
-KINDS = ("motors", "stands", "experiments")
+KINDS = ("motors", "stands", "experiments", "limits")
 
 
 def _shipped_dir() -> Path:

@@ -99,5 +99,6 @@ function plotColumns(canvas, columns) {
   ctx.textAlign = "center";
   ctx.fillText("time, s", left + (W - left - right) / 2, H - 6);
   canvas.dataset.points = String(drawn);
+  canvas.dataset.samples = String(time.length);  // drawn thinned; this is what it holds
   return drawn;
 }

@@ -47,11 +47,29 @@ COMMANDS: dict[str, tuple[str, str]] = {
 log = logging.getLogger("stand")
 
 
+#: Log level of each -v / -q count (default INFO: progress lines on stderr).
+LOG_LEVELS = {-2: logging.ERROR, -1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("motorstand")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="stand", description="Test-stand controller for motors and gear reducers.",
         epilog="commands: " + "; ".join(f"{n}: {h}" for n, (_, h) in COMMANDS.items()),
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="more log lines on stderr (-v: debug)")
+    parser.add_argument("-q", "--quiet", action="count", default=0,
+                        help="fewer log lines on stderr (-q: warnings, -qq: errors only)")
     parser.add_argument("command", choices=list(COMMANDS), help="what to do")
     return parser
 
@@ -59,11 +77,19 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``stand`` console script; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(message)s")
     top = _parser()
     if not argv or argv[0] in ("-h", "--help"):
         top.print_help(sys.stderr if not argv else sys.stdout)
         return 0 if argv else 2
+    # Options before the command: --version, -v, -q (each command parses the rest).
+    first = next((k for k, a in enumerate(argv) if not a.startswith("-")), len(argv))
+    options = top.parse_args([*argv[:first], next(iter(COMMANDS))])
+    argv = argv[first:]
+    if not argv:
+        top.error("give a command")
+    level = LOG_LEVELS[max(-2, min(1, options.verbose - options.quiet))]
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(message)s")
+    log.setLevel(level)  # the project's own lines; libraries keep the root's level
     name = argv[0]
     if name not in COMMANDS:
         top.parse_args(argv[:1])  # prints the usage and exits 2

@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     finally:
         storage.close()
 
-    plots = [] if args.no_plots else _plots(out, no_load[0], loaded[0],
+    plots = [] if args.no_plots else _plots(out, kt, eta, no_load[0], loaded[0],
                                             read_run(eff.runs[0].path, "reducer"))
     return {
         "Kt": kt.Kt, "Kt_std": kt.Kt_std, "Kt_profile": load_motor(stand.motor_in).motor.Kt,
@@ -180,7 +180,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
-def _plots(out: Path, no_load: Any, loaded: Any, reducer: Any) -> list[str]:
+def _plots(out: Path, kt: Any, eta: Any, no_load: Any, loaded: Any, reducer: Any) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -195,20 +195,24 @@ def _plots(out: Path, no_load: Any, loaded: Any, reducer: Any) -> list[str]:
     axes[0].set_ylabel("velocity, rad/s")
     axes[1].set_ylabel("current, A")
     axes[1].set_xlabel("time, s")
-    axes[0].legend()
-    fig.suptitle("seed 000 identification runs over the virtual CAN bus")
+    axes[0].legend(fontsize=8)
+    axes[1].legend(fontsize=8)
+    fig.suptitle("seed 000 identification runs over the virtual CAN bus\n"
+                 f"result: Kt = {kt.Kt:.5f} ± {kt.Kt_std:.5f} N·m/A, J = {kt.J:.4g} kg·m², "
+                 f"no-load current {kt.no_load_current_A:.3f} A", fontsize=10)
     paths.append(out / "identification_runs.png")
-    fig.savefig(paths[-1], dpi=100)
+    fig.savefig(paths[-1], dpi=100, bbox_inches="tight")
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(8, 3.5))
     ax.plot(reducer.time_s, reducer["current_in_A"], label="input motor", lw=0.8)
     ax.plot(reducer.time_s, reducer["current_out_A"], label="output motor (load)", lw=0.8)
     ax.set_xlabel("time, s")
     ax.set_ylabel("current, A")
-    ax.legend()
-    fig.suptitle("two-motor efficiency run: output load steps")
+    ax.legend(fontsize=8)
+    fig.suptitle("two-motor efficiency run: output load steps\n"
+                 f"result: efficiency {eta.efficiency:.4f} ± {eta.efficiency_std:.4f}", fontsize=10)
     paths.append(out / "efficiency_run.png")
-    fig.savefig(paths[-1], dpi=100)
+    fig.savefig(paths[-1], dpi=100, bbox_inches="tight")  # the x-label is kept whole
     plt.close(fig)
     return [str(p) for p in paths]
 

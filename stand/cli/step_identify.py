@@ -64,22 +64,23 @@ def plot(result: StepResult, runs: list[Run], path: str) -> Path:
 
     rows = 2 if result.used_current else 1
     fig, axes = plt.subplots(2, rows, figsize=(6 * rows, 6), sharex=True, squeeze=False)
-    channels = [("velocity_rad_s", "speed, rad/s")] + (
-        [("current_A", "current, A")] if result.used_current else [])
+    channels = [("velocity_rad_s", "speed", "rad/s")] + (
+        [("current_A", "current", "A")] if result.used_current else [])
     for index, run in enumerate(runs):
         simulated = simulated_response(result, run, index)
-        for col, (name, label) in enumerate(channels):
+        for col, (name, label, unit) in enumerate(channels):
             t = run.time_s - run.time_s[0]
             axes[0, col].plot(t, run[name], lw=0.6, label=f"measured {Path(run.source).name}")
             axes[0, col].plot(t, simulated[col], lw=1.2, label="model")
             axes[1, col].plot(t, run[name] - simulated[col], lw=0.5)
-            axes[0, col].set_ylabel(label)
-            axes[1, col].set_ylabel("residual")
+            axes[0, col].set_ylabel(f"{label}, {unit}")
+            axes[1, col].set_ylabel(f"{label} residual, {unit}")
             axes[1, col].set_xlabel("time, s")
     num, den = result.transfer_function["num"], result.transfer_function["den"]
     axes[0, 0].set_title(f"ω/v = {num[0]:.4g} / (s² + {den[1]:.4g}·s + {den[2]:.4g}), "
                          f"fit {result.fit_percent:.2f} %", fontsize=9)
-    axes[0, 0].legend(fontsize=7)
+    for ax in axes[0]:
+        ax.legend(fontsize=7)
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)

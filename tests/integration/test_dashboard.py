@@ -83,19 +83,20 @@ def test_dashboard_lists_runs_and_plots_a_run_live(server: Server, tmp_path: Pat
 
         # Watch the live canvas: it must be redrawn with more points while the run runs.
         canvas = find(By.ID, "live")
-        seen: list[tuple[int, int]] = []  # (updates, points) while the state was 'running'
+        seen: list[tuple[int, int]] = []  # (updates, samples) while the state was 'running'
         deadline = time.monotonic() + RUN_TIMEOUT_S
         while (state := canvas.get_attribute("data-state")) not in ("done", "failed", "aborted"):
             assert time.monotonic() < deadline, f"run not over in {RUN_TIMEOUT_S} s ({state})"
             if state == "running":
                 seen.append((int(canvas.get_attribute("data-updates")),
-                             int(canvas.get_attribute("data-points"))))
+                             int(canvas.get_attribute("data-samples"))))
             time.sleep(0.05)
         assert state == "done"
         updates = sorted({u for u, _ in seen if u > 0})
         assert len(updates) >= 2, f"live plot redrawn {updates} times during the run"
-        points = [p for u, p in seen if u > 0]
-        assert points[-1] > points[0], "the live plot did not grow during the run"
+        samples = [s for u, s in seen if u > 0]
+        assert samples[-1] > samples[0], f"the live plot did not grow during the run: {samples}"
+        assert int(canvas.get_attribute("data-points")) > 0
         if os.environ.get("STAND_SCREENSHOTS"):  # refresh the README's picture on demand
             run_id = canvas.get_attribute("data-run")
             row = wait_for(lambda: driver.find_elements(  # type: ignore[attr-defined]
