@@ -42,7 +42,9 @@ def install(app: FastAPI) -> None:
             openapi_url=openapi_url, title=f"{app.title} - Swagger UI",
             swagger_js_url=f"{DOCS_ASSETS_URL}/swagger-ui-bundle.js",
             swagger_css_url=f"{DOCS_ASSETS_URL}/swagger-ui.css",
-            swagger_favicon_url=f"{DOCS_ASSETS_URL}/favicon.png")
+            swagger_favicon_url=f"{DOCS_ASSETS_URL}/favicon.png",
+            # no badge from the public validator: the page makes no request off the service
+            swagger_ui_parameters={**(app.swagger_ui_parameters or {}), "validatorUrl": None})
 
     @app.get("/redoc", include_in_schema=False)
     def redoc() -> HTMLResponse:

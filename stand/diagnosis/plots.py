@@ -41,7 +41,7 @@ def write_plots(folder: str | Path, diagnosis: Diagnosis, traces: Traces) -> lis
         draw(ax, traces, diagnosis)
         fig.tight_layout()
         path = folder / f"{name}.png"
-        fig.savefig(path)
+        fig.savefig(path, bbox_inches="tight")  # no label clipped, whatever its length
         plt.close(fig)
         paths.append(path)
     return paths
