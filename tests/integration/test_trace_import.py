@@ -23,7 +23,9 @@ from bus.tracereader import decode_dbc, decode_trace, sdo_values
 from stand.cli import main
 from stand.controller import ExperimentProfile, StandController
 from stand.errors import InputError
+from stand.importer import import_run
 from stand.runfile import read_run
+from stand.sources import ReadOptions
 
 MOTOR = "crouzet_82800502"
 
@@ -137,3 +139,26 @@ def _other_dbc(tmp_path: Path) -> Path:
     other = tmp_path / "other.dbc"
     other.write_text('VERSION ""\nBU_: X\nBO_ 1000 Other: 1 X\n SG_ A : 0|8@1+ (1,0) [0|255] "" X\n')
     return other
+
+
+def test_a_two_drive_run_reads_back_as_a_reducer_run(tmp_path: Path) -> None:
+    experiment = ExperimentProfile(name="eff", procedure="efficiency", stand="cycloidal_two_motor",
+                                   duration_s=1.0)
+    with StandBus("cycloidal_two_motor", BusConfig("virtual", "trace-import-reducer"),
+                  simulate=True, seed=5, heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+        record = StandController(bus).run_experiment(experiment, tmp_path).runs[0]
+    assert record.complete and record.path is not None and record.trace_path is not None
+    back = tmp_path / "back.csv"
+    assert main(["import", record.trace_path, "-o", str(back), "--kind", "reducer",
+                 "--motor", MOTOR, "--period", str(record.period_s)]) == 0
+    recorded, decoded = read_run(record.path, "reducer"), read_run(back, "reducer")
+    assert sorted(decoded.columns) == sorted(recorded.columns)
+    for name in recorded.columns:
+        assert_array_equal(decoded[name], recorded[name], err_msg=name)
+    # One drive of the two is not a reducer run, and the message says how to choose.
+    with pytest.raises(InputError, match=r"holds 2 drive\(s\).*give --node"):
+        import_run(record.trace_path, [], "single", options=ReadOptions(motor=MOTOR, period_s=1e-3))
+    node = import_run(record.trace_path, [], "single",
+                      options=ReadOptions(motor=MOTOR, node=2, period_s=record.period_s))
+    # in memory against the run file's 9 significant digits
+    np.testing.assert_allclose(node["current_A"], recorded["current_out_A"], rtol=1e-8, atol=0)
