@@ -41,6 +41,24 @@ def wait_for(condition, timeout_s: float = PAGE_TIMEOUT_S, what: str = "conditio
     raise AssertionError(f"{what}: not within {timeout_s} s")
 
 
+def click_row(driver, table: str, row_id: str) -> None:  # type: ignore[no-untyped-def]
+    """Click the row of ``row_id``; the page redraws its tables every 2 s, so a row found a
+    moment ago may be gone: find it again until the click lands."""
+    from selenium.common.exceptions import StaleElementReferenceException
+    from selenium.webdriver.common.by import By
+
+    def click() -> bool:
+        try:
+            rows = driver.find_elements(By.CSS_SELECTOR, f'#{table} tbody tr[data-id="{row_id}"]')
+            if rows:
+                rows[0].click()
+            return bool(rows)
+        except StaleElementReferenceException:
+            return False
+
+    wait_for(click, what=f"row {row_id} of #{table} clicked")
+
+
 def upload_run(server: Server) -> str:
     t = np.arange(500) * 1e-3
     text = format_run({"time_s": t, "current_A": 0.1 * np.sin(20 * t),
@@ -98,10 +116,7 @@ def test_dashboard_lists_runs_and_plots_a_run_live(server: Server, tmp_path: Pat
         assert samples[-1] > samples[0], f"the live plot did not grow during the run: {samples}"
         assert int(canvas.get_attribute("data-points")) > 0
         if os.environ.get("STAND_SCREENSHOTS"):  # refresh the README's picture on demand
-            run_id = canvas.get_attribute("data-run")
-            row = wait_for(lambda: driver.find_elements(  # type: ignore[attr-defined]
-                By.CSS_SELECTOR, f'#runs tbody tr[data-id="{run_id}"]'))
-            row[0].click()
+            click_row(driver, "runs", canvas.get_attribute("data-run"))
             wait_for(lambda: int(find(By.ID, "run-plot").get_attribute("data-points")) > 0)
             driver.save_screenshot(str(tmp_path / "dashboard.png"))  # type: ignore[attr-defined]
             shutil.copy(tmp_path / "dashboard.png", ROOT / "docs" / "dashboard.png")
@@ -149,9 +164,7 @@ def test_a_result_report_opens_with_its_figures_and_limits(server: Server, tmp_p
         driver.get(server.base_url + "/")  # type: ignore[attr-defined]
         find = driver.find_element  # type: ignore[attr-defined]
         wait_for(lambda: find(By.TAG_NAME, "body").get_attribute("data-ready"), what="page ready")
-        row = wait_for(lambda: driver.find_elements(  # type: ignore[attr-defined]
-            By.CSS_SELECTOR, f'#results tbody tr[data-id="{result_id}"]'), what="result listed")
-        row[0].click()
+        click_row(driver, "results", result_id)
         driver.switch_to.frame(find(By.ID, "result-frame"))  # type: ignore[attr-defined]
         framed = wait_for(lambda: driver.find_elements(By.TAG_NAME, "img"), what="report in frame")  # type: ignore[attr-defined]
         wait_for(lambda: int(framed[0].get_property("naturalWidth")) > 0, what="figure drawn")
