@@ -1,7 +1,10 @@
 """The FastAPI application: storage and the stand are opened in the lifespan.
 
 ``create_app()`` builds the app from :func:`stand.settings.get_settings`; tests pass their
-own settings, storage or stand runner.
+own settings, storage or stand runner. At start-up the app takes the data directory's
+lock (:class:`stand.datadir.DataDirLock`; a second service on it refuses to start, naming
+the owner's PID), then marks runs a dead predecessor left live as ``aborted`` and prunes
+uploads past ``STAND_UPLOAD_RETENTION_S``.
 """
 
 from __future__ import annotations
@@ -15,7 +18,9 @@ from fastapi import FastAPI
 
 from api import errors, pages
 from api.limits import BodyLimit
+from api.origin import LoopbackOnly
 from api.routers import analysis, health, profiles, results, runs, stand
+from stand.datadir import DataDirLock
 from stand.jobs import SIMULATED_MASTER_OPTIONS, ControllerRunner, JobManager, StandRunner
 from stand.settings import Settings, get_settings
 from stand.storage import Storage
@@ -47,31 +52,47 @@ def default_runner(settings: Settings) -> StandRunner:
 
 
 def create_app(settings: Settings | None = None,
-               runner_factory: Callable[[Settings], StandRunner] | None = None) -> FastAPI:
-    """Build the app; storage and stand open at start-up and close at shutdown."""
+               runner_factory: Callable[[Settings], StandRunner] | None = None,
+               lock: DataDirLock | None = None) -> FastAPI:
+    """Build the app; storage and stand open at start-up and close at shutdown.
+
+    ``lock``: the data directory's lock when the caller took it already (``stand
+    serve`` does, to refuse before uvicorn starts); otherwise the app takes it.
+    """
     settings = settings or get_settings()
     factory = runner_factory or default_runner
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        storage = Storage(settings.database)
-        aborted = storage.recover()
-        if aborted:
-            log.warning("marked %d run(s) interrupted by a restart as aborted: %s",
-                        len(aborted), ", ".join(aborted))
-        jobs = JobManager(storage, factory(settings))
-        app.state.settings, app.state.storage, app.state.jobs = settings, storage, jobs
+        own = lock is None or not lock.held
+        held = DataDirLock(settings.data_dir).acquire() if own else lock
+        assert held is not None
         try:
-            yield
+            storage = Storage(settings.database)
+            aborted = storage.recover(held)
+            if aborted:
+                log.warning("marked %d run(s) interrupted by a restart as aborted: %s",
+                            len(aborted), ", ".join(aborted))
+            if settings.upload_retention_s is not None:
+                storage.prune_uploads(settings.upload_retention_s)
+            jobs = JobManager(storage, factory(settings))
+            app.state.settings, app.state.storage, app.state.jobs = settings, storage, jobs
+            try:
+                yield
+            finally:
+                jobs.close()
+                storage.close()
         finally:
-            jobs.close()
-            storage.close()
+            if own:
+                held.release()
 
     app = FastAPI(title="motorstand", version="0.1.0", description=DESCRIPTION, lifespan=lifespan,
                   docs_url=None, redoc_url=None)
     app.state.settings = settings
     errors.install(app)
     app.add_middleware(BodyLimit, limit=settings.upload_limit_bytes)
+    if settings.api_key is None:
+        app.add_middleware(LoopbackOnly)  # outermost: refused before anything is read
     for router in (health.router, profiles.router, runs.router, analysis.router, results.router,
                    stand.router):
         app.include_router(router)

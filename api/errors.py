@@ -8,16 +8,25 @@ NotFoundError          404     an unknown run, result or profile
 LimitError             422     a command beyond the profile's limits; nothing was sent
 SolverError            422     the data did not let the method converge
 RunAborted             409     the run stopped before its end
+StorageError           503     the database cannot be written (disk full, I/O error)
 BusError               503     CAN / CANopen trouble (timeout, drive fault, heartbeat)
 other StandError       500     a bug: reported with its message
 =====================  ======  =====================================================
+
+Request validation errors (422) list each bad field as ``{"type", "loc", "msg"}`` plus
+the ``input`` only when it is plain finite JSON: NaN or Infinity in a body cannot be
+written back as JSON, and echoing it made the default handler fail with a 500.
 """
 
 from __future__ import annotations
 
+import json
 import logging
+from typing import Any
 
 from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from stand.errors import (
@@ -28,6 +37,7 @@ from stand.errors import (
     RunAborted,
     SolverError,
     StandError,
+    StorageError,
 )
 
 log = logging.getLogger("stand.api")
@@ -39,6 +49,7 @@ STATUS: tuple[tuple[type[StandError], int, str], ...] = (
     (LimitError, 422, "limit"),
     (SolverError, 422, "solver"),
     (RunAborted, 409, "aborted"),
+    (StorageError, 503, "storage"),
     (BusError, 503, "bus"),
     (StandError, 500, "internal"),
 )
@@ -62,6 +73,32 @@ async def stand_error_handler(request: Request, exc: Exception) -> JSONResponse:
                         status_code=status)
 
 
+#: Longest echoed input in a validation error, characters of JSON.
+MAX_ECHO_CHARS = 200
+
+
+def _plain(error: dict[str, Any]) -> dict[str, Any]:
+    """One validation error as finite JSON: ``input`` only when it is plain and short."""
+    out: dict[str, Any] = {"type": str(error.get("type", "value_error")),
+                           "loc": [p if isinstance(p, int) else str(p) for p in error.get("loc", ())],
+                           "msg": str(error.get("msg", ""))}
+    if "input" in error:
+        try:
+            echo = json.dumps(jsonable_encoder(error["input"]), allow_nan=False)
+        except (ValueError, TypeError):  # NaN, Infinity, bytes, files: not echoed
+            echo = ""
+        if echo and len(echo) <= MAX_ECHO_CHARS:
+            out["input"] = json.loads(echo)
+    return out
+
+
+async def validation_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """422 with ``detail``: the bad fields, never a 500 for input that is not JSON."""
+    assert isinstance(exc, RequestValidationError)
+    return JSONResponse({"detail": [_plain(e) for e in exc.errors()]}, status_code=422)
+
+
 def install(app: FastAPI) -> None:
-    """Register the handler on ``app``."""
+    """Register the handlers on ``app``."""
     app.add_exception_handler(StandError, stand_error_handler)
+    app.add_exception_handler(RequestValidationError, validation_error_handler)

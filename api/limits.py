@@ -7,6 +7,7 @@ against the same limit as well (:mod:`api.uploads`).
 
 from __future__ import annotations
 
+import contextlib
 import json
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -16,7 +17,13 @@ FORM_OVERHEAD_BYTES = 1 << 20
 
 
 class BodyLimit:
-    """ASGI middleware: 413 for bodies over ``limit`` (+ form overhead) bytes."""
+    """ASGI middleware: 413 for bodies over ``limit`` (+ form overhead) bytes.
+
+    Once a streamed body passes the limit, the app's receive raises
+    :class:`BodyTooLarge`; whatever the app does about it (a form parser may report a
+    "malformed" body, a route may answer 422), its answer is replaced by the 413 as long
+    as no byte of it has been sent.
+    """
 
     def __init__(self, app: ASGIApp, limit: int) -> None:
         self.app = app
@@ -31,19 +38,31 @@ class BodyLimit:
                 await self._refuse(send)
                 return
         seen = 0
+        over = False
+        started = False
 
         async def counted() -> Message:
-            nonlocal seen
+            nonlocal seen, over
+            if over:
+                raise BodyTooLarge
             message = await receive()
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > self.limit:
+                    over = True
                     raise BodyTooLarge
             return message
 
-        try:
-            await self.app(scope, counted, send)
-        except BodyTooLarge:
+        async def guarded(message: Message) -> None:
+            nonlocal started
+            if over and not started:
+                return  # the app's answer to a cut-off body; the 413 replaces it
+            started = True
+            await send(message)
+
+        with contextlib.suppress(BodyTooLarge):
+            await self.app(scope, counted, guarded)
+        if over and not started:
             await self._refuse(send)
 
     async def _refuse(self, send: Send) -> None:

@@ -16,20 +16,64 @@ class _Body(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-class RunRequest(_Body):
-    """A job on the stand: an experiment profile plus what to change for this job.
+#: Shortest SYNC period a run may ask for, s. One SYNC (47 bits) and an RPDO and a TPDO
+#: of 8 bytes (up to 135 bits each, CiA 301 frames with stuffing) take about 0.3 ms of a
+#: 1 Mbit/s bus: below 0.25 ms a cycle cannot carry even one drive's process data.
+MIN_PERIOD_S = 2.5e-4
+#: Longest SYNC period, s: slower than any identification in the papers samples (1 ms).
+MAX_PERIOD_S = 1.0
+#: Longest run, s (the experiment profile's own bound).
+MAX_DURATION_S = 3600.0
+#: Largest seed: numpy's legacy seeding range, 2**32 - 1.
+MAX_SEED = 2**32 - 1
+#: A shipped profile's name: letters, digits, ``_`` and ``-``; no path, no suffix.
+PROFILE_NAME = r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$"
 
-    ``overrides`` may change the experiment's ``procedure`` (e.g. ``added_inertia`` on a
-    no-load experiment), ``repeats``, ``duration_s``, ``period_s``,
-    ``added_inertia_kgm2``, ``load_current_A``, ``step_V``, ``step_time_s``, ``seed``;
-    every command is checked against the motor profile's limits before anything moves
+
+def _bounded(low: float | None = None, high: float | None = None, *, gt: float | None = None,
+             description: str) -> Any:
+    return Field(None, ge=low, le=high, gt=gt, allow_inf_nan=False, description=description)
+
+
+class RunOverrides(_Body):
+    """Experiment fields a job may change; each finite and in range (422 naming it).
+
+    The motor and stand are not here: their profiles hold the limits. Every command is
+    still checked against those limits before anything moves, and a run of more than
+    ``stand.jobs.MAX_RUN_SAMPLES`` samples (duration_s / period_s) is refused before it
+    is planned.
+    """
+
+    procedure: Literal["torque_constant", "no_load", "added_inertia", "efficiency",
+                       "voltage_step"] | None = Field(None, description="the experiment's procedure")
+    repeats: int | None = Field(None, ge=1, le=100, description="no-load/loaded run pairs")
+    duration_s: float | None = _bounded(high=MAX_DURATION_S, gt=0,
+                                        description="stand time of one run, s")
+    period_s: float | None = _bounded(MIN_PERIOD_S, MAX_PERIOD_S, description="SYNC period, s")
+    added_inertia_kgm2: float | None = _bounded(high=10.0, gt=0,
+                                                description="inertia of the added disk, kg·m²")
+    load_current_A: float | None = _bounded(high=1000.0, gt=0,
+                                            description="output-motor load step, A")
+    step_V: float | None = _bounded(-1000.0, 1000.0, description="voltage step height, V")
+    step_time_s: float | None = _bounded(0.0, MAX_DURATION_S, description="time of the step, s")
+    seed: int | None = Field(None, ge=0, le=MAX_SEED, description="seed of the simulated noise")
+
+
+class RunRequest(_Body):
+    """A job on the stand: an experiment profile, by name, plus what to change for this job.
+
+    Every command is checked against the motor profile's limits before anything moves
     (422). An experiment of several runs becomes one job per run (``runs``).
     """
 
-    profile: str = Field(min_length=1, max_length=200,
+    profile: str = Field(pattern=PROFILE_NAME,
                          description="experiment profile name (GET /profiles: experiments)")
-    overrides: dict[str, Any] = Field(default_factory=dict,
-                                      description="experiment fields to change for this job")
+    overrides: RunOverrides = Field(default_factory=RunOverrides,
+                                    description="experiment fields to change for this job")
+
+    def job(self) -> dict[str, Any]:
+        """The request as the job manager takes it (only the overrides given)."""
+        return {"profile": self.profile, "overrides": self.overrides.model_dump(exclude_none=True)}
 
 
 class IdentifyRequest(_Body):

@@ -12,6 +12,8 @@ catch either::
     ├── NotFoundError (LookupError)      an unknown run id, profile or node
     ├── LimitError                       a command outside the profile's limits
     ├── SolverError (ArithmeticError)    a numerical method that failed to converge
+    ├── StorageError (OSError)           the run database cannot be written (disk full, I/O)
+    │   └── DataDirLocked                another process owns the data directory
     ├── BusError                         CAN / CANopen trouble
     │   ├── BusTimeout (TimeoutError)    an SDO, boot-up or PDO that did not come
     │   ├── DriveFault                   a drive that reported a fault (EMCY)
@@ -54,6 +56,14 @@ class LimitError(StandError):
 
 class SolverError(StandError, ArithmeticError):
     """A numerical method that did not converge or met a singular problem."""
+
+
+class StorageError(StandError, OSError):
+    """The run database could not be read or written (disk full, I/O error)."""
+
+
+class DataDirLocked(StorageError):
+    """Another process owns the data directory (a second ``stand serve`` on it)."""
 
 
 class BusError(StandError):

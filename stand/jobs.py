@@ -8,10 +8,16 @@ direct simulation. Every sample chunk the runner hands over is committed to
 
 Run states: ``queued`` → ``running`` → ``done`` | ``stopped`` (POST /stop) | ``aborted``
 (the stand aborted the run, or the service died during it) | ``failed`` (an error).
+
+The worker outlives anything a job throws, storage errors included: a final state that
+cannot be written (disk full) is kept and written again before the next job and every
+:data:`RETRY_MARKS_S` while idle; until then :attr:`JobManager.fault` says which runs
+wait for it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import queue
 import threading
@@ -23,7 +29,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from stand.errors import InputError, RunAborted, StandError
+from stand.errors import InputError, NotFoundError, RunAborted, StandError, StorageError
 from stand.storage import RunRecord, Storage, new_id
 
 log = logging.getLogger("stand.jobs")
@@ -32,6 +38,12 @@ log = logging.getLogger("stand.jobs")
 PROGRESS_INTERVAL_S = 0.2
 #: How long close() waits for the worker to finish the current run after a stop, s.
 CLOSE_TIMEOUT_S = 10.0
+#: Most samples one run may record (duration_s / period_s), checked before planning:
+#: planning holds every command in memory (about 25 bytes a sample), so 10**8 samples
+#: would take seconds and gigabytes before any limit check. Two million is 2000 s at 1 kHz.
+MAX_RUN_SAMPLES = 2_000_000
+#: How often an idle worker retries final states it could not write, s.
+RETRY_MARKS_S = 1.0
 
 #: Master timeouts for drives simulated in this process (``bus.master.Master`` options).
 #: The simulated drives share the CPU with the master and the service (and, on a build
@@ -108,6 +120,8 @@ class JobManager:
         self._stop = threading.Event()
         self._cancelled: set[str] = set()
         self._closing = False
+        #: Final states not yet written (run id to update_run fields), oldest first.
+        self._unmarked: dict[str, dict[str, Any]] = {}
         self._worker = threading.Thread(target=self._work, name="stand-jobs", daemon=True)
         self._worker.start()
 
@@ -117,9 +131,15 @@ class JobManager:
         """Check ``request`` and queue its runs; returns them (state ``queued``)."""
         plans = self.runner.plan(request)
         job = new_id()
-        records = [self.storage.create_run(plan.kind, "job", profile=plan.profile,
-                                           request={**plan.request, "job": job})
-                   for plan in plans]
+        records: list[RunRecord] = []
+        try:
+            for plan in plans:
+                records.append(self.storage.create_run(plan.kind, "job", profile=plan.profile,
+                                                       request={**plan.request, "job": job}))
+        except StorageError as exc:
+            for record in records:  # never queued: they must not stay "queued"
+                self._mark(record.id, state="failed", message=f"not queued: {exc}")
+            raise
         plans = [replace(plan, request={**plan.request, "job": job}) for plan in plans]
         with self._lock:
             for record, plan in zip(records, plans, strict=True):
@@ -139,7 +159,7 @@ class JobManager:
             self._cancelled.update(cancelled)
         drives = self.runner.quick_stop_all()
         for run_id in cancelled:
-            self.storage.update_run(run_id, state="stopped", message="cancelled by POST /stop")
+            self._mark(run_id, state="stopped", message="cancelled by POST /stop")
         return {"stopped_run": current, "cancelled_runs": cancelled, "drives": drives,
                 "wall_time_s": time.monotonic() - started}
 
@@ -149,6 +169,16 @@ class JobManager:
             current = self._current
             queued = sum(1 for i in self._plans if i != current and i not in self._cancelled)
         return {**self.runner.status(), "current_run": current, "queued_runs": queued}
+
+    @property
+    def fault(self) -> str | None:
+        """Why some runs' final states are not yet stored, or None."""
+        with self._lock:
+            waiting = list(self._unmarked)
+        if not waiting:
+            return None
+        return (f"{len(waiting)} run(s) ended but their final state could not be stored yet "
+                f"({', '.join(waiting[:5])}); retried every {RETRY_MARKS_S:g} s")
 
     def close(self) -> None:
         """Stop the current run, let the worker end, close the runner."""
@@ -161,11 +191,36 @@ class JobManager:
 
     # -- worker -----------------------------------------------------------------------
 
+    def _mark(self, run_id: str, **fields: Any) -> bool:
+        """Write a run's final state; on a storage error keep it for a retry."""
+        try:
+            self.storage.update_run(run_id, **fields)
+        except StorageError as exc:
+            log.error("run %s: could not store state %s: %s", run_id, fields.get("state"), exc)
+            with self._lock:
+                self._unmarked[run_id] = {**self._unmarked.get(run_id, {}), **fields}
+            return False
+        with self._lock:
+            self._unmarked.pop(run_id, None)
+        return True
+
+    def _retry_marks(self) -> None:
+        with self._lock:
+            waiting = list(self._unmarked.items())
+        for run_id, fields in waiting:
+            if not self._mark(run_id, **fields):
+                return  # the storage still fails; next time
+
     def _work(self) -> None:
         while True:
-            run_id = self._queue.get()
+            try:
+                run_id = self._queue.get(timeout=RETRY_MARKS_S)
+            except queue.Empty:
+                self._retry_marks()
+                continue
             if run_id is None:
                 return
+            self._retry_marks()
             with self._lock:
                 plan = self._plans.get(run_id)
                 if plan is None or run_id in self._cancelled:
@@ -175,6 +230,9 @@ class JobManager:
                 self._stop.clear()
             try:
                 self._execute(run_id, plan)
+            except Exception:  # the worker outlives any job; the queue goes on
+                log.exception("run %s: the job failed outside its own error handling", run_id)
+                self._mark(run_id, state="failed", message="internal error; see the service log")
             finally:
                 with self._lock:
                     self._current = None
@@ -187,18 +245,25 @@ class JobManager:
                    and i != self._current and i not in self._cancelled]
             self._cancelled.update(ids)
         for run_id in ids:
-            self.storage.update_run(run_id, state="aborted", message=reason)
+            self._mark(run_id, state="aborted", message=reason)
 
     def _execute(self, run_id: str, plan: RunPlan) -> None:
         storage = self.storage
-        storage.update_run(run_id, state="running")
+        try:
+            storage.update_run(run_id, state="running")
+        except StorageError as exc:  # nothing could be recorded: nothing moves
+            self._mark(run_id, state="failed", message=f"not started: {exc}")
+            return
         last = [0.0]
 
         def on_progress(fraction: float) -> None:
             now = time.monotonic()
             if now - last[0] >= PROGRESS_INTERVAL_S:
                 last[0] = now
-                storage.update_run(run_id, progress=fraction)
+                # Progress is a hint for watchers; samples (on_chunk) carry the run. A
+                # failed progress write must not stop the drive mid-run.
+                with contextlib.suppress(StorageError):
+                    storage.update_run(run_id, progress=fraction)
 
         def on_chunk(columns: Mapping[str, np.ndarray]) -> None:
             storage.append_samples(run_id, columns)
@@ -206,24 +271,44 @@ class JobManager:
         try:
             outcome = self.runner.execute(run_id, plan, on_progress, on_chunk, self._stop)
         except RunAborted as exc:
-            storage.update_run(run_id, state="aborted", message=str(exc))
+            self._mark(run_id, state="aborted", message=str(exc))
             self._cancel_job(plan.request.get("job"), f"an earlier run of this job aborted: {exc}")
+        except StorageError as exc:
+            self._mark(run_id, state="failed", message=str(exc))
+            self._cancel_job(plan.request.get("job"), f"an earlier run of this job failed: {exc}")
         except StandError as exc:
-            storage.update_run(run_id, state="failed", message=str(exc))
+            self._mark(run_id, state="failed", message=str(exc))
         except Exception as exc:  # a bug in a runner must not kill the worker
             log.exception("run %s failed", run_id)
-            storage.update_run(run_id, state="failed", message=f"{type(exc).__name__}: {exc}")
+            self._mark(run_id, state="failed", message=f"{type(exc).__name__}: {exc}")
         else:
             if self._closing:
-                storage.update_run(run_id, state="aborted", meta=outcome.meta,
-                                   message="the service shut down during the run; samples so far "
-                                           "are kept")
+                self._mark(run_id, state="aborted", meta=outcome.meta,
+                           message="the service shut down during the run; samples so far are kept")
             elif self._stop.is_set():
-                storage.update_run(run_id, state="stopped", meta=outcome.meta,
-                                   message=outcome.message or "stopped by POST /stop (quick stop)")
+                self._mark(run_id, state="stopped", meta=outcome.meta,
+                           message=outcome.message or "stopped by POST /stop (quick stop)")
             else:
-                storage.update_run(run_id, state="done", progress=1.0, meta=outcome.meta,
-                                   message=outcome.message)
+                self._mark(run_id, state="done", progress=1.0, meta=outcome.meta,
+                           message=outcome.message)
+
+
+def _check_samples(experiment: Any) -> None:
+    """Refuse a run of more than :data:`MAX_RUN_SAMPLES` samples before it is planned."""
+    from stand.profiles import load_motor, load_stand
+
+    period = experiment.period_s
+    if period is None and experiment.stand:
+        period = load_stand(experiment.stand).sample_period_s
+    elif period is None and experiment.motor:
+        period = load_motor(experiment.motor).sample_period_s
+    if period is None:
+        return  # plan() names the missing motor or stand
+    samples = experiment.duration_s / period
+    if not samples <= MAX_RUN_SAMPLES:
+        raise InputError(f"overrides: duration_s {experiment.duration_s:g} s at period_s "
+                         f"{period:g} s is {samples:.3g} samples a run, more than "
+                         f"{MAX_RUN_SAMPLES}; shorten duration_s or lengthen period_s")
 
 
 class ControllerRunner:
@@ -256,12 +341,21 @@ class ControllerRunner:
         self._bus_key: tuple[str, int | None] | None = None
 
     def plan(self, request: Mapping[str, Any]) -> list[RunPlan]:
+        """The runs of ``request``; ``profile`` is a shipped experiment's *name*.
+
+        Requests come from the network: a path would read any YAML file on this machine
+        and tell the caller whether it exists, so only names in ``GET /profiles`` count.
+        """
         from pydantic import ValidationError
 
         from stand.controller import ExperimentProfile, load_experiment, plan
-        from stand.profiles import describe
+        from stand.profiles import describe, list_profiles
 
         name = str(request.get("profile"))
+        known = list_profiles().get("experiments", [])
+        if name not in known:
+            raise NotFoundError(f"profile: no experiment profile of that name; known: "
+                                f"{', '.join(known)} (GET /profiles)")
         experiment = load_experiment(name)
         overrides = dict(request.get("overrides") or {})
         for key in ("name", "motor", "stand"):
@@ -272,6 +366,7 @@ class ControllerRunner:
             experiment = ExperimentProfile(**{**experiment.model_dump(), **overrides})
         except ValidationError as exc:
             raise InputError(describe(exc, "overrides.", echo=False)) from exc
+        _check_samples(experiment)
         runs = plan(experiment)  # LimitError before anything moves
         target = str(experiment.stand or experiment.motor)
         return [RunPlan(proc.kind, experiment.name,

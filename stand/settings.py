@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 
@@ -29,6 +29,19 @@ class Settings(BaseSettings):
     bus_channel: str = Field("motorstand", description="python-can channel")
     bus_bitrate: int = Field(1_000_000, gt=0)
     time_mode: Literal["lockstep", "realtime"] = "lockstep"
+    upload_retention_s: float | None = Field(
+        None, gt=0, allow_inf_nan=False,
+        description="uploaded runs older than this are deleted, s (default: kept)")
+
+    @field_validator("api_key", mode="before")
+    @classmethod
+    def _blank_key_is_no_key(cls, value: Any) -> Any:
+        """``STAND_API_KEY=`` (empty or blanks) is no key, not a key anyone can send."""
+        if isinstance(value, SecretStr):
+            value = value.get_secret_value()
+        if isinstance(value, str) and not value.strip():
+            return None
+        return value
 
     @property
     def database(self) -> Path:

@@ -15,7 +15,12 @@ One database file holds three tables:
 Durability: WAL journal with ``synchronous=NORMAL`` — a committed chunk survives a crash
 or SIGKILL of the process (it is in the WAL, replayed on the next open); an operating
 system crash may lose the last transactions. :meth:`Storage.recover` marks runs left
-``running`` or ``queued`` by a dead process as ``aborted``, keeping their samples.
+``running`` or ``queued`` by a dead process as ``aborted``, keeping their samples; it
+runs only under the data directory's lock (:class:`stand.datadir.DataDirLock`).
+
+Faults: every SQLite error (disk full, I/O error) becomes a
+:class:`~stand.errors.StorageError` and is kept in :attr:`Storage.fault` until the next
+write succeeds, so the service can report degraded storage with its reason.
 """
 
 from __future__ import annotations
@@ -33,7 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from stand.errors import InputError, NotFoundError
+from stand.datadir import DataDirLock
+from stand.errors import InputError, NotFoundError, StorageError
 from stand.runfile import Run, RunKind, check_columns
 
 #: Run states. ``queued`` and ``running`` are live; the others are final.
@@ -138,44 +144,74 @@ class Storage:
 
     One connection is shared by all threads behind a lock; every write is one
     transaction.
+
+    Attributes
+    ----------
+    fault : str or None
+        Why the last write failed (disk full, I/O error), or None once a write succeeded.
     """
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self.fault: str | None = None
         if str(path) != ":memory:":
             self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.RLock()
-        self._db = sqlite3.connect(str(path), timeout=BUSY_TIMEOUT_S, check_same_thread=False,
-                                   isolation_level=None)
-        self._db.row_factory = sqlite3.Row
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=NORMAL")
-        self._db.execute("PRAGMA foreign_keys=ON")
-        self._db.executescript(_SCHEMA)
+        with self._guard("open"):
+            self._db = sqlite3.connect(str(path), timeout=BUSY_TIMEOUT_S,
+                                       check_same_thread=False, isolation_level=None)
+            self._db.row_factory = sqlite3.Row
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=NORMAL")
+            self._db.execute("PRAGMA foreign_keys=ON")
+            self._db.executescript(_SCHEMA)
 
     def close(self) -> None:
         """Close the connection (checkpoints the WAL)."""
-        with self._lock:
+        with self._lock, self._guard("close"):
             self._db.close()
 
     @contextmanager
+    def _guard(self, action: str) -> Iterator[None]:
+        """Turn SQLite errors into :class:`StorageError` and remember the fault."""
+        try:
+            yield
+        except sqlite3.Error as exc:
+            self.fault = f"{action} failed on {self.path}: {exc}"
+            raise StorageError(f"storage: {self.fault}; free disk space or check the "
+                               "database file (GET /health)") from exc
+
+    @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
-        with self._lock:
+        with self._lock, self._guard("write"):
             self._db.execute("BEGIN IMMEDIATE")
             try:
                 yield self._db
             except BaseException:
-                self._db.execute("ROLLBACK")
+                # SQLite may already have rolled back itself (SQLITE_FULL, SQLITE_IOERR).
+                if self._db.in_transaction:
+                    self._db.execute("ROLLBACK")
                 raise
             self._db.execute("COMMIT")
+        self.fault = None
+
+    def _query(self, sql: str, params: Sequence[Any] = ()) -> list[sqlite3.Row]:
+        with self._lock, self._guard("read"):
+            return self._db.execute(sql, params).fetchall()
 
     # -- runs -----------------------------------------------------------------------
 
-    def recover(self) -> list[str]:
+    def recover(self, lock: DataDirLock) -> list[str]:
         """Mark runs a dead process left ``queued`` or ``running`` as ``aborted``.
 
-        Call once at start-up, before any run starts. Returns the ids marked.
+        Call once at start-up, before any run starts, holding the data directory's
+        ``lock``: without it the live runs of another service would be marked. Returns
+        the ids marked.
         """
+        if not lock.held:
+            raise StorageError(f"recover() needs the lock of the data directory "
+                               f"{lock.data_dir} held by this process; another service may "
+                               "own its runs")
         with self._transaction() as db:
             rows = db.execute("SELECT id FROM runs WHERE state IN ('queued', 'running')").fetchall()
             ids = [row["id"] for row in rows]
@@ -272,11 +308,10 @@ class Storage:
 
     def get_run(self, run_id: str) -> RunRecord:
         """The record of run ``run_id``; :class:`NotFoundError` if unknown."""
-        with self._lock:
-            row = self._db.execute("SELECT * FROM runs WHERE id=?", (run_id,)).fetchone()
-        if row is None:
+        rows = self._query("SELECT * FROM runs WHERE id=?", (run_id,))
+        if not rows:
             raise NotFoundError(f"no run {run_id!r}; GET /runs lists the stored runs")
-        return _record(row)
+        return _record(rows[0])
 
     def list_runs(self, limit: int = 100, offset: int = 0, state: str | None = None) -> list[RunRecord]:
         """Runs, newest first."""
@@ -285,16 +320,12 @@ class Storage:
             query += " WHERE state=?"
             params.append(state)
         query += " ORDER BY created_s DESC LIMIT ? OFFSET ?"
-        with self._lock:
-            rows = self._db.execute(query, (*params, limit, offset)).fetchall()
-        return [_record(row) for row in rows]
+        return [_record(row) for row in self._query(query, (*params, limit, offset))]
 
     def samples(self, run_id: str, start: int = 0) -> dict[str, np.ndarray]:
         """The samples of a run from sample index ``start`` on, column name to array."""
         record = self.get_run(run_id)
-        with self._lock:
-            rows = self._db.execute(
-                "SELECT rows, data FROM chunks WHERE run_id=? ORDER BY seq", (run_id,)).fetchall()
+        rows = self._query("SELECT rows, data FROM chunks WHERE run_id=? ORDER BY seq", (run_id,))
         width = len(record.columns)
         blocks, seen = [], 0
         for row in rows:
@@ -311,6 +342,31 @@ class Storage:
         return check_columns(self.samples(run_id), kind or record.kind,  # type: ignore[arg-type]
                              f"run {run_id}")
 
+    def delete_run(self, run_id: str) -> None:
+        """Delete a finished run and its samples (results that used it keep their inputs).
+
+        A ``queued`` or ``running`` run is refused (:class:`InputError`): stop it first.
+        """
+        with self._transaction() as db:
+            row = db.execute("SELECT state FROM runs WHERE id=?", (run_id,)).fetchone()
+            if row is None:
+                raise NotFoundError(f"no run {run_id!r}; GET /runs lists the stored runs")
+            if row["state"] in LIVE_STATES:
+                raise InputError(f"run {run_id} is {row['state']}; POST /stop ends it, then "
+                                 "it can be deleted")
+            db.execute("DELETE FROM chunks WHERE run_id=?", (run_id,))
+            db.execute("DELETE FROM runs WHERE id=?", (run_id,))
+
+    def prune_uploads(self, older_than_s: float) -> int:
+        """Delete uploaded runs created more than ``older_than_s`` seconds ago; returns
+        how many went. Runs recorded on the stand are never pruned."""
+        cutoff = time.time() - older_than_s
+        with self._transaction() as db:
+            old = "SELECT id FROM runs WHERE origin='upload' AND created_s < ?"
+            db.execute(f"DELETE FROM chunks WHERE run_id IN ({old})", (cutoff,))
+            return int(db.execute("DELETE FROM runs WHERE origin='upload' AND created_s < ?",
+                                  (cutoff,)).rowcount)
+
     # -- results --------------------------------------------------------------------
 
     def add_result(self, operation: str, inputs: Mapping[str, Any], result: Mapping[str, Any]) -> str:
@@ -325,17 +381,15 @@ class Storage:
 
     def get_result(self, result_id: str) -> ResultRecord:
         """One stored result; :class:`NotFoundError` if unknown."""
-        with self._lock:
-            row = self._db.execute("SELECT * FROM results WHERE id=?", (result_id,)).fetchone()
-        if row is None:
+        rows = self._query("SELECT * FROM results WHERE id=?", (result_id,))
+        if not rows:
             raise NotFoundError(f"no result {result_id!r}")
-        return _result(row)
+        return _result(rows[0])
 
     def list_results(self, limit: int = 100, offset: int = 0) -> list[ResultRecord]:
         """Stored results, newest first."""
-        with self._lock:
-            rows = self._db.execute("SELECT * FROM results ORDER BY created_s DESC LIMIT ? OFFSET ?",
-                                    (limit, offset)).fetchall()
+        rows = self._query("SELECT * FROM results ORDER BY created_s DESC LIMIT ? OFFSET ?",
+                           (limit, offset))
         return [_result(row) for row in rows]
 
 

@@ -40,7 +40,7 @@ def _view(record: RunRecord) -> dict[str, Any]:
 async def start_run(body: RunRequest, jobs: JobsDep, response: Response) -> dict[str, Any]:
     """Queue the runs of an experiment on the stand; 202 with the first run, its
     ``Location``, and ``runs``: the ids of every run of the job, in order."""
-    records = await run_in_threadpool(jobs.submit, body.model_dump())
+    records = await run_in_threadpool(jobs.submit, body.job())
     response.headers["Location"] = f"/runs/{records[0].id}"
     return {**_view(records[0]), "runs": [r.id for r in records]}
 

@@ -7,10 +7,10 @@ other address (exit 2).
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import logging
 from typing import Any
 
+from stand.datadir import DataDirLock
 from stand.errors import InputError
 from stand.settings import get_settings
 
@@ -19,12 +19,9 @@ log = logging.getLogger("stand.serve")
 
 def is_loopback(host: str) -> bool:
     """Whether ``host`` names only the loopback interface."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
+    from api.origin import is_loopback_name
+
+    return is_loopback_name(host)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -53,7 +50,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         log.warning("no STAND_API_KEY set: listening on loopback %s only, mutating routes "
                     "are open to local callers", host)
     log.info("database %s", settings.database)
-    uvicorn.run(create_app(settings), host=host, port=port, log_level=args.log_level)
+    # The lock before uvicorn: a second service on this data directory exits here,
+    # naming the owner's PID, without touching the first one's runs.
+    with DataDirLock(settings.data_dir) as lock:
+        uvicorn.run(create_app(settings, lock=lock), host=host, port=port,
+                    log_level=args.log_level)
     return {"host": host, "port": port, "stopped": True}
 
 

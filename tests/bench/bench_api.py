@@ -149,7 +149,7 @@ def bench_stop(workdir: Path, repeats: int = 5) -> None:
             return recorder[0]
 
         settings = Settings(data_dir=workdir / f"stop{k}", bus_channel=f"bench-stop-{k}")
-        with TestClient(create_app(settings, factory)) as client:  # type: ignore[arg-type]
+        with TestClient(create_app(settings, factory), base_url="http://127.0.0.1") as client:  # type: ignore[arg-type]
             run_id = client.post("/runs", json={"profile": "seed000_efficiency",
                                                 "overrides": {"duration_s": 300.0}}).json()["id"]
             while client.get(f"/runs/{run_id}").json()["samples"] < 1000:

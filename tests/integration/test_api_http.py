@@ -67,7 +67,8 @@ def test_validation_names_the_field(client: httpx.Client) -> None:
     assert answer.status_code == 422
     assert ["body", "profile"] in [e["loc"] for e in answer.json()["detail"]]
     answer = client.post("/runs", json={**SHORT_RUN, "overrides": {"duration_s": -1}})
-    assert answer.status_code == 422 and "overrides.duration_s" in answer.json()["detail"]
+    assert answer.status_code == 422
+    assert ["body", "overrides", "duration_s"] in [e["loc"] for e in answer.json()["detail"]]
     answer = client.post("/efficiency", json={"run": "abc", "ratio": "eleven", "k_in": 1, "k_out": 1})
     assert answer.status_code == 422
     assert ["body", "ratio"] in [e["loc"] for e in answer.json()["detail"]]

@@ -50,7 +50,7 @@ def test_stop_quick_stops_every_drive_mid_run(tmp_path: Path) -> None:
         recorder.append(RecordingRunner(default_runner(s)))
         return recorder[0]  # type: ignore[return-value]
 
-    with TestClient(create_app(settings, factory)) as client:
+    with TestClient(create_app(settings, factory), base_url="http://127.0.0.1") as client:
         client.headers["Authorization"] = "Bearer k"
         # Two drives: the efficiency run of the reducer stand, long enough to be mid-run.
         run_id = client.post("/runs", json={"profile": "seed000_efficiency",
