@@ -20,6 +20,7 @@ from api import errors, pages
 from api.limits import BodyLimit
 from api.origin import LoopbackOnly
 from api.routers import analysis, health, profiles, results, runs, stand
+from api.uploads import parse_lanes
 from stand.datadir import DataDirLock
 from stand.jobs import SIMULATED_MASTER_OPTIONS, ControllerRunner, JobManager, StandRunner
 from stand.settings import Settings, get_settings
@@ -68,7 +69,7 @@ def create_app(settings: Settings | None = None,
         held = DataDirLock(settings.data_dir).acquire() if own else lock
         assert held is not None
         try:
-            storage = Storage(settings.database)
+            storage = Storage(settings.database, settings.db_max_bytes)
             aborted = storage.recover(held)
             if aborted:
                 log.warning("marked %d run(s) interrupted by a restart as aborted: %s",
@@ -77,6 +78,7 @@ def create_app(settings: Settings | None = None,
                 storage.prune_uploads(settings.upload_retention_s)
             jobs = JobManager(storage, factory(settings))
             app.state.settings, app.state.storage, app.state.jobs = settings, storage, jobs
+            app.state.parse_lanes = parse_lanes()
             try:
                 yield
             finally:

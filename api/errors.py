@@ -26,8 +26,10 @@ from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from stand.errors import (
     BusError,
@@ -92,6 +94,19 @@ def _plain(error: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+async def http_error_handler(request: Request, exc: Exception) -> Response:
+    """FastAPI's answer, except that a body it could not spool because the server's
+    disk is full (an OSError behind its 400) is the server's fault: 503."""
+    assert isinstance(exc, StarletteHTTPException)
+    cause = exc.__cause__
+    if exc.status_code == 400 and isinstance(cause, OSError):
+        log.error("%s %s: cannot store the request body: %s", request.method, request.url.path,
+                  cause)
+        return JSONResponse({"detail": f"the server cannot store the request body: {cause}",
+                             "error": "storage"}, status_code=503)
+    return await http_exception_handler(request, exc)
+
+
 async def validation_error_handler(request: Request, exc: Exception) -> JSONResponse:
     """422 with ``detail``: the bad fields, never a 500 for input that is not JSON."""
     assert isinstance(exc, RequestValidationError)
@@ -102,3 +117,4 @@ def install(app: FastAPI) -> None:
     """Register the handlers on ``app``."""
     app.add_exception_handler(StandError, stand_error_handler)
     app.add_exception_handler(RequestValidationError, validation_error_handler)
+    app.add_exception_handler(StarletteHTTPException, http_error_handler)

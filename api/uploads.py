@@ -3,26 +3,42 @@
 An analysis route takes either ``application/json`` (the request model, runs by stored
 id) or ``multipart/form-data`` with the same field names, where a run field may be a CSV
 file (CONTRACT §1) instead of an id. Uploaded files are stored as runs (origin
-``upload``) so every result keeps its inputs.
+``upload``) so every result keeps its inputs; when the analysis is refused, the runs
+uploaded for it are deleted again (their ids were never handed out).
+
+Parsing a run file is pure Python under the GIL. It runs in worker threads, at most
+:data:`PARSE_LANES` at once: more parallel parses would only take turns for the GIL,
+and each one more makes the event loop wait longer for its own turn (with 40 at once,
+GET /health stalled for seconds under 100 concurrent uploads).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 from typing import Any, get_args, get_origin
 
+import anyio
 from fastapi import HTTPException, Request, UploadFile
 from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 from starlette.datastructures import UploadFile as StarletteUpload
 
-from stand.errors import RunFileError
+from api.forms import read_form
+from stand.errors import RunFileError, StandError
 from stand.runfile import Run, RunKind, parse_run
 from stand.storage import Storage
 
 #: Bytes read from an upload at a time.
 READ_BLOCK_BYTES = 1 << 20
+#: Uploads parsed at once (see the module docstring).
+PARSE_LANES = 1
+
+
+def parse_lanes() -> anyio.CapacityLimiter:
+    """The limiter of upload parsing, one per app (made at start-up)."""
+    return anyio.CapacityLimiter(PARSE_LANES)
 
 
 def too_large(limit: int) -> HTTPException:
@@ -30,20 +46,32 @@ def too_large(limit: int) -> HTTPException:
                               "(setting STAND_UPLOAD_LIMIT_BYTES)")
 
 
-async def read_upload(file: UploadFile | StarletteUpload, kind: RunKind, limit: int,
-                      field: str) -> Run:
-    """Read and validate one uploaded run file; 413 past ``limit`` bytes."""
-    data = bytearray()
-    while block := await file.read(READ_BLOCK_BYTES):
-        data += block
-        if len(data) > limit:
-            raise too_large(limit)
-    source = f"{field}: {file.filename or '<upload>'}"
+def _parse(file: UploadFile | StarletteUpload, kind: RunKind, limit: int, source: str) -> Run:
+    file.file.seek(0)
+    data = file.file.read(limit + 1)
+    if len(data) > limit:
+        raise too_large(limit)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise RunFileError(f"{source}: not a UTF-8 text file ({exc.reason})") from exc
-    return await run_in_threadpool(parse_run, text, kind, source)
+    return parse_run(text, kind, source)
+
+
+async def read_upload(file: UploadFile | StarletteUpload, kind: RunKind, limit: int,
+                      field: str, lanes: anyio.CapacityLimiter) -> Run:
+    """Read and validate one uploaded run file off the event loop; 413 past ``limit``
+    bytes."""
+    source = f"{field}: {file.filename or '<upload>'}"
+    return await anyio.to_thread.run_sync(_parse, file, kind, limit, source, limiter=lanes)
+
+
+def forget_uploads(storage: Storage, run_ids: list[str]) -> None:
+    """Delete runs uploaded for a request that was refused; best effort (a storage
+    fault is already reported by /health)."""
+    for run_id in run_ids:
+        with contextlib.suppress(StandError):
+            storage.delete_run(run_id)
 
 
 def check_length(request: Request, limit: int) -> None:
@@ -62,16 +90,18 @@ def _is_dict(annotation: Any) -> bool:
 
 
 async def parse_body(request: Request, model: type[BaseModel], run_fields: dict[str, RunKind],
-                     storage: Storage, limit: int) -> BaseModel:
+                     storage: Storage, limit: int, uploaded: list[str]) -> BaseModel:
     """The validated request of an analysis, from JSON or from a multipart form.
 
     Uploaded files in ``run_fields`` are parsed as runs of the given kind, stored, and
-    replaced by their new ids. Errors: 422 naming the field, 413 past ``limit``.
+    replaced by their new ids, which are appended to ``uploaded`` (so the caller can
+    delete them when the analysis is refused). Errors: 422 naming the field, 413 past
+    ``limit``.
     """
     check_length(request, limit)
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if content_type == "multipart/form-data":
-        data = await _form_data(request, model, run_fields, storage, limit)
+        data = await _form_data(request, model, run_fields, storage, limit, uploaded)
     else:
         try:
             data = await request.json()
@@ -87,14 +117,8 @@ async def parse_body(request: Request, model: type[BaseModel], run_fields: dict[
 
 
 async def _form_data(request: Request, model: type[BaseModel], run_fields: dict[str, RunKind],
-                     storage: Storage, limit: int) -> dict[str, Any]:
-    try:
-        form = await request.form(max_files=200, max_fields=200)
-    except Exception as exc:  # malformed multipart body (starlette raises several kinds)
-        if isinstance(exc, HTTPException):
-            raise
-        raise RequestValidationError([{"type": "value_error", "loc": ("body",), "input": None,
-                                       "msg": f"malformed multipart form: {exc}"}]) from exc
+                     storage: Storage, limit: int, uploaded: list[str]) -> dict[str, Any]:
+    form = await read_form(request, request.app.state.parse_lanes)
     data: dict[str, Any] = {}
     total = 0
     try:
@@ -109,11 +133,13 @@ async def _form_data(request: Request, model: type[BaseModel], run_fields: dict[
                             "type": "value_error", "loc": ("body", name), "input": value.filename,
                             "msg": f"field {name!r} takes no file; files go in "
                                    f"{', '.join(run_fields)}"}])
-                    run = await read_upload(value, run_fields[name], limit - total, name)
+                    run = await read_upload(value, run_fields[name], limit - total, name,
+                                            request.app.state.parse_lanes)
                     total += value.size or 0
                     record = await run_in_threadpool(storage.store_run, run, run_fields[name],
                                                      "upload", {"filename": value.filename,
                                                                 "field": name})
+                    uploaded.append(record.id)
                     items.append(record.id)
                 elif annotation is not None and _is_dict(annotation):
                     try:

@@ -29,6 +29,8 @@ class Settings(BaseSettings):
     bus_channel: str = Field("motorstand", description="python-can channel")
     bus_bitrate: int = Field(1_000_000, gt=0)
     time_mode: Literal["lockstep", "realtime"] = "lockstep"
+    db_max_bytes: int | None = Field(
+        None, gt=0, description="largest size of the SQLite file, bytes (default: the disk's)")
     upload_retention_s: float | None = Field(
         None, gt=0, allow_inf_nan=False,
         description="uploaded runs older than this are deleted, s (default: kept)")

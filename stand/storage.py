@@ -145,13 +145,21 @@ class Storage:
     One connection is shared by all threads behind a lock; every write is one
     transaction.
 
+    Parameters
+    ----------
+    path : path
+        The database file (``":memory:"`` for a throw-away one).
+    max_bytes : int, optional
+        Largest size the database may grow to, bytes (SQLite ``max_page_count``); a
+        write past it fails as on a full disk, so the data directory's disk never fills.
+
     Attributes
     ----------
     fault : str or None
         Why the last write failed (disk full, I/O error), or None once a write succeeded.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, max_bytes: int | None = None) -> None:
         self.path = Path(path)
         self.fault: str | None = None
         if str(path) != ":memory:":
@@ -165,6 +173,9 @@ class Storage:
             self._db.execute("PRAGMA synchronous=NORMAL")
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.executescript(_SCHEMA)
+            if max_bytes is not None:
+                page = int(self._db.execute("PRAGMA page_size").fetchone()[0])
+                self._db.execute(f"PRAGMA max_page_count={max(1, int(max_bytes) // page)}")
 
     def close(self) -> None:
         """Close the connection (checkpoints the WAL)."""

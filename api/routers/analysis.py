@@ -25,7 +25,7 @@ from api.schemas import (
     StepIdentifyRequest,
     TorqueConstantRequest,
 )
-from api.uploads import parse_body
+from api.uploads import forget_uploads, parse_body
 from stand import diagnose, efficiency, identify, step_identify, torque_constant
 from stand.errors import SolverError, StandError
 from stand.jsonable import JsonResult
@@ -124,9 +124,14 @@ def _openapi(op: Operation) -> dict[str, Any]:
 
 def _route(op: Operation) -> Callable[..., Any]:
     async def analyse(request: Request, storage: StorageDep, settings: SettingsDep) -> dict[str, Any]:
-        body = await parse_body(request, op.model, op.run_fields, storage,
-                                settings.upload_limit_bytes)
-        return await run_in_threadpool(_execute, storage, op, body)
+        uploaded: list[str] = []
+        try:
+            body = await parse_body(request, op.model, op.run_fields, storage,
+                                    settings.upload_limit_bytes, uploaded)
+            return await run_in_threadpool(_execute, storage, op, body)
+        except Exception:
+            await run_in_threadpool(forget_uploads, storage, uploaded)
+            raise
 
     analyse.__name__ = op.name.replace("-", "_")
     analyse.__doc__ = op.model.__doc__

@@ -5,13 +5,16 @@ from __future__ import annotations
 import asyncio
 import json
 from collections.abc import AsyncIterator
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
-from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile
+from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, PlainTextResponse, StreamingResponse
+from starlette.datastructures import FormData, UploadFile
 
 from api.deps import Authorized, JobsDep, MovesMotor, SettingsDep, StorageDep
+from api.forms import read_form
 from api.schemas import RunRequest
 from api.uploads import read_upload
 from stand.jsonable import to_jsonable
@@ -45,16 +48,54 @@ async def start_run(body: RunRequest, jobs: JobsDep, response: Response) -> dict
     return {**_view(records[0]), "runs": [r.id for r in records]}
 
 
-@router.post("/upload", status_code=201, dependencies=[Authorized])
+RunKindField = Literal["single", "step", "reducer"]
+_UPLOAD_FORM = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
+    "type": "object", "required": ["file"], "properties": {
+        "file": {"type": "string", "format": "binary", "description": "run file, CSV (CONTRACT §1)"},
+        "kind": {"type": "string", "enum": list(get_args(RunKindField)), "default": "single"},
+    }}}}}}
+
+
+def _upload_fields(form: FormData) -> tuple[UploadFile, RunKindField]:
+    """The form's ``file`` and ``kind``; 422 naming the field otherwise."""
+    file, kind = form.get("file"), form.get("kind", "single")
+    errors: list[dict[str, Any]] = []
+    if not isinstance(file, UploadFile):
+        errors.append({"type": "missing", "loc": ("body", "file"), "input": None,
+                       "msg": "a run file (CSV) is required in the form field 'file'"})
+    if kind not in get_args(RunKindField):
+        errors.append({"type": "literal_error", "loc": ("body", "kind"), "input": None,
+                       "msg": "kind must be 'single', 'step' or 'reducer'"})
+    if errors:
+        raise RequestValidationError(errors)
+    return file, kind  # type: ignore[return-value]
+
+
+@router.post("/upload", status_code=201, dependencies=[Authorized], openapi_extra=_UPLOAD_FORM)
 async def upload_run(storage: StorageDep, settings: SettingsDep, request: Request,
-                     file: Annotated[UploadFile, File(description="run file, CSV (CONTRACT §1)")],
-                     kind: Annotated[Literal["single", "step", "reducer"], Form()] = "single",
                      ) -> dict[str, Any]:
-    """Store an uploaded run file; 201 with the new run."""
-    run = await read_upload(file, kind, settings.upload_limit_bytes, "file")
+    """Store an uploaded run file (multipart form: ``file``, ``kind``); 201 with the new
+    run. Uploads older than ``STAND_UPLOAD_RETENTION_S`` (when set) are deleted."""
+    form = await read_form(request, request.app.state.parse_lanes)
+    try:
+        file, kind = _upload_fields(form)
+        run = await read_upload(file, kind, settings.upload_limit_bytes, "file",
+                                request.app.state.parse_lanes)
+    finally:
+        await form.close()
     record = await run_in_threadpool(storage.store_run, run, kind, "upload",
                                      {"filename": file.filename})
+    if settings.upload_retention_s is not None:
+        await run_in_threadpool(storage.prune_uploads, settings.upload_retention_s)
     return _view(record)
+
+
+@router.delete("/{run_id}", status_code=204, dependencies=[Authorized])
+async def delete_run(run_id: str, storage: StorageDep) -> Response:
+    """Delete a finished run (an upload or a job's) and its samples; 204. A queued or
+    running run is refused (422): POST /stop first. Results keep their inputs."""
+    await run_in_threadpool(storage.delete_run, run_id)
+    return Response(status_code=204)
 
 
 @router.get("")

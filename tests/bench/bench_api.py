@@ -6,6 +6,10 @@ Run: ``python -m tests.bench.bench_api`` (about a minute on 2 cores).
    per-chunk write latency and the read-back time of a 100 000-sample run.
 2. 50 concurrent POST /identify on stored 100 000-sample runs against a real uvicorn:
    errors, p50 / p99 / max latency, throughput.
+3. 100 concurrent uploads (POST /runs/upload) of 100 000-sample runs while GET /health
+   is polled: upload latencies and the /health latencies during the load (p50, p99, max).
+
+``python -m tests.bench.bench_api uploads`` runs only the third (about two minutes).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -131,6 +136,80 @@ def bench_identify(workdir: Path) -> None:
           f"all done in {wall:.2f} s ({REQUESTS / wall:.1f} requests/s)")
 
 
+UPLOADS = 100
+#: Time between two GET /health polls during the upload load, s.
+HEALTH_POLL_S = 0.05
+
+
+def _watch_health(base_url: str, stop: Any, out: Any) -> None:
+    """GET /health every HEALTH_POLL_S until ``stop`` is set; send the latencies, s.
+
+    Runs in its own process: in the uploading process the client's own work (100
+    uploads on one event loop) would add to the latencies it measures.
+    """
+    latencies: list[float] = []
+    with httpx.Client(base_url=base_url, timeout=900) as watcher:
+        while not stop.is_set():
+            t0 = time.perf_counter()
+            watcher.get("/health").raise_for_status()
+            latencies.append(time.perf_counter() - t0)
+            time.sleep(HEALTH_POLL_S)
+    out.send(latencies)
+
+
+async def _upload_all(base_url: str, headers: dict[str, str], text: str,
+                      ) -> tuple[list[float], int, float]:
+    body, content_type = _multipart(text)
+    uploads: list[float] = []
+    errors = 0
+    limits = httpx.Limits(max_connections=UPLOADS + 5)
+    async with httpx.AsyncClient(base_url=base_url, headers=headers, timeout=900,
+                                 limits=limits) as client:
+        async def one(k: int) -> None:
+            nonlocal errors
+            t0 = time.perf_counter()
+            answer = await client.post("/runs/upload", content=body,
+                                       headers={"Content-Type": content_type})
+            uploads.append(time.perf_counter() - t0)
+            if answer.status_code != 201:
+                errors += 1
+                print(f"  upload {k}: {answer.status_code} {answer.text[:200]}", file=sys.stderr)
+
+        t0 = time.perf_counter()
+        await asyncio.gather(*(one(k) for k in range(UPLOADS)))
+        wall = time.perf_counter() - t0
+    return uploads, errors, wall
+
+
+def _multipart(text: str) -> tuple[bytes, str]:
+    """The upload's form encoded once (the client then only sends bytes)."""
+    request = httpx.Request("POST", "http://localhost/", files={"file": ("run.csv", text)})
+    return request.read(), request.headers["Content-Type"]
+
+
+def bench_uploads(workdir: Path) -> None:
+    import multiprocessing
+
+    text = long_run_csv()
+    with serve(workdir / "uploads") as server:
+        stop = multiprocessing.Event()
+        receive, send = multiprocessing.Pipe(duplex=False)
+        watcher = multiprocessing.Process(target=_watch_health, args=(server.base_url, stop, send))
+        watcher.start()
+        uploads, errors, wall = asyncio.run(_upload_all(
+            server.base_url, {"Authorization": f"Bearer {server.api_key}"}, text))
+        stop.set()
+        health = receive.recv()
+        watcher.join()
+    print(f"{UPLOADS} concurrent POST /runs/upload of {SAMPLES}-sample runs "
+          f"({len(text) / 1e6:.1f} MB of CSV each), one uvicorn worker, 2 shared cores:")
+    print(f"  errors {errors}; upload latency p50 {percentile(uploads, 50):.2f} s, "
+          f"p99 {percentile(uploads, 99):.2f} s; all done in {wall:.1f} s")
+    print(f"  GET /health during the load from another process ({len(health)} polls): p50 "
+          f"{1e3 * percentile(health, 50):.1f} ms, p99 {1e3 * percentile(health, 99):.1f} ms, "
+          f"max {1e3 * max(health):.1f} ms")
+
+
 def bench_stop(workdir: Path, repeats: int = 5) -> None:
     """POST /stop mid-run on the two-drive stand: stand time until every node is in quick stop."""
     from fastapi.testclient import TestClient
@@ -172,9 +251,13 @@ def bench_stop(workdir: Path, repeats: int = 5) -> None:
 
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
+        if sys.argv[1:] == ["uploads"]:
+            bench_uploads(Path(tmp))
+            return
         bench_storage(Path(tmp))
         bench_stop(Path(tmp))
         bench_identify(Path(tmp))
+        bench_uploads(Path(tmp))
 
 
 if __name__ == "__main__":

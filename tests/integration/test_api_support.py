@@ -6,6 +6,7 @@ Not a test module of its own: the API tests import :func:`serve` from here.
 from __future__ import annotations
 
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -53,8 +54,18 @@ def free_port() -> int:
 
 
 def start(data_dir: Path, api_key: str | None = "test-key", extra_env: dict[str, str] | None = None,
-          ) -> Server:
-    """Start ``python -m stand serve`` and wait until /health answers."""
+          file_size_limit: int | None = None) -> Server:
+    """Start ``python -m stand serve`` and wait until /health answers.
+
+    ``file_size_limit``: largest file the server may write, bytes (``RLIMIT_FSIZE``): a
+    disk that fills up, without a privileged mount. Python ignores SIGXFSZ, so a write
+    past the limit fails with EFBIG as on a full disk instead of killing the process.
+    """
+
+    def limit_files() -> None:
+        if file_size_limit is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (file_size_limit, file_size_limit))
+
     port = free_port()
     env = {k: v for k, v in os.environ.items() if not k.startswith("STAND_")}
     env.update(STAND_DATA_DIR=str(data_dir), PYTHONPATH=str(ROOT), **(extra_env or {}))
@@ -65,7 +76,8 @@ def start(data_dir: Path, api_key: str | None = "test-key", extra_env: dict[str,
     with open(log_path, "ab") as log:
         process = subprocess.Popen(
             [sys.executable, "-m", "stand", "serve", "--host", "127.0.0.1", "--port", str(port),
-             "--log-level", "warning"], cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+             "--log-level", "warning"], cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
+            preexec_fn=limit_files if file_size_limit is not None else None)
     server = Server(f"http://127.0.0.1:{port}", api_key, data_dir, process, log_path)
     deadline = time.monotonic() + START_TIMEOUT_S
     while time.monotonic() < deadline:
@@ -93,9 +105,10 @@ def stop(server: Server) -> None:
 
 @contextmanager
 def serve(data_dir: Path, api_key: str | None = "test-key",
-          extra_env: dict[str, str] | None = None) -> Iterator[Server]:
+          extra_env: dict[str, str] | None = None, file_size_limit: int | None = None,
+          ) -> Iterator[Server]:
     """A running server for the ``with`` block."""
-    server = start(data_dir, api_key, extra_env)
+    server = start(data_dir, api_key, extra_env, file_size_limit)
     try:
         yield server
     finally:
