@@ -34,6 +34,9 @@ COLUMNS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 MIN_SAMPLES = 20
 #: Largest allowed relative deviation of one sample period from the median period.
 PERIOD_TOLERANCE = 0.01
+#: Shortest sample period a run may have, s. No drive samples faster than 1 MHz; a period
+#: of 1e-300 s makes the identification's 1/period² terms overflow to infinity.
+MIN_PERIOD_S = 1e-6
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,11 @@ def _check_time(time_s: np.ndarray, source: str) -> None:
             f"after {time_s[row - 3]}; time_s must be strictly increasing"
         )
     period = float(np.median(steps))
+    if period < MIN_PERIOD_S:
+        raise RunFileError(
+            f"{source}: column time_s: sample period {period:.3g} s is shorter than "
+            f"{MIN_PERIOD_S:g} s; time_s must be in seconds"
+        )
     deviation = np.abs(steps - period) / period
     worst = int(np.argmax(deviation))
     if deviation[worst] > PERIOD_TOLERANCE:

@@ -24,6 +24,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
+from stand.cli.options import check as check_options
 from stand.errors import InputError, NotFoundError, StandError
 from stand.jsonable import JsonResult, to_jsonable
 
@@ -99,6 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     module.add_arguments(parser)
     args = parser.parse_args(argv[1:])
+    check_options(parser, args)  # checks across options (exit 2 like argparse's own)
     try:
         result = module.run(args)
     except (InputError, NotFoundError) as exc:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from stand.cli import options
 from stand.errors import InputError
 
 BENCHMARKS = ("diagnose",)
@@ -12,10 +13,11 @@ BENCHMARKS = ("diagnose",)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("benchmark", choices=BENCHMARKS, help="which benchmark")
-    parser.add_argument("--cases", type=int, default=200, help="number of blind cases")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the drawn cases")
-    parser.add_argument("--workers", type=int, default=2, help="worker processes")
-    parser.add_argument("--min-snr", type=float, default=None,
+    parser.add_argument("--cases", type=options.whole(1, 10**6), default=200,
+                        help="number of blind cases")
+    parser.add_argument("--seed", type=options.seed, default=1, help="seed of the drawn cases")
+    parser.add_argument("--workers", type=options.whole(1, 64), default=2, help="worker processes")
+    parser.add_argument("--min-snr", type=options.non_negative, default=None,
                         help="least SNR of a planted effect on HOLDOUT (default "
                         "stand.diagnosis.benchmark.MIN_EFFECT_SNR; 0 keeps every first draw)")
 

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from stand.cli import options
 from stand.errors import InputError
 from stand.jobs import SIMULATED_MASTER_OPTIONS
 from stand.jsonable import to_jsonable
@@ -37,11 +38,12 @@ DIAGNOSIS_SEED = 100
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("-o", "--output", help="directory for run files, traces and plots "
-                                               "(default: STAND_DATA_DIR/demo)")
-    parser.add_argument("--repeats", type=int, default=DEMO_REPEATS,
+    parser.add_argument("-o", "--output", type=options.output_dir,
+                        help="directory for run files, traces and plots "
+                             "(default: STAND_DATA_DIR/demo)")
+    parser.add_argument("--repeats", type=options.whole(1, 100), default=DEMO_REPEATS,
                         help="repeats of the no-load and added-inertia runs (the seed: 5)")
-    parser.add_argument("--duration", type=float, default=DEMO_DURATION_S,
+    parser.add_argument("--duration", type=options.duration, default=DEMO_DURATION_S,
                         help="length of each identification run, s of stand time")
     parser.add_argument("--no-plots", action="store_true", help="skip the plots")
 

@@ -7,22 +7,25 @@ from dataclasses import replace
 from typing import Any
 
 from stand import Diagnosis, InputError, diagnose, read_run
+from stand.cli import options
 from stand.diagnosis.engine import ANCHOR_HORIZON_S, MAX_EFFECTS, diagnose_with_traces
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("train", help="run file the models are identified on (CSV, single motor)")
-    parser.add_argument("--holdout", required=True,
+    parser.add_argument("train", type=options.input_file,
+                        help="run file the models are identified on (CSV, single motor)")
+    parser.add_argument("--holdout", required=True, type=options.input_file,
                         help="run file the models are scored on (CSV, single motor)")
-    parser.add_argument("--kt", type=float, default=None,
+    parser.add_argument("--kt", type=options.positive, default=None,
                         help="torque constant, N·m/A: also report torques in N·m")
-    parser.add_argument("--horizon", type=float, default=ANCHOR_HORIZON_S,
+    parser.add_argument("--horizon", type=options.positive, default=ANCHOR_HORIZON_S,
                         help="free-run time between re-anchorings of the simulation, s")
-    parser.add_argument("--max-effects", type=int, default=MAX_EFFECTS,
+    parser.add_argument("--max-effects", type=options.whole(1, 8), default=MAX_EFFECTS,
                         help="most effects combined in the verdict")
     parser.add_argument("--spring", action="store_true",
                         help="keep seed 000's spring term C·θ in the nominal model")
-    parser.add_argument("--plot", metavar="DIR", help="write PNG figures to this folder")
+    parser.add_argument("--plot", metavar="DIR", type=options.output_dir,
+                        help="write PNG figures to this folder")
 
 
 def run(args: argparse.Namespace) -> Diagnosis:

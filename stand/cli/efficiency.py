@@ -6,15 +6,17 @@ import argparse
 from typing import Any
 
 from stand import EfficiencyResult, efficiency, read_run
+from stand.cli import options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", help="two-motor reducer run file (CSV, CONTRACT §1)")
-    parser.add_argument("--ratio", type=float, required=True, metavar="N",
+    parser.add_argument("run", type=options.input_file,
+                        help="two-motor reducer run file (CSV, CONTRACT §1)")
+    parser.add_argument("--ratio", type=options.positive, required=True, metavar="N",
                         help="reduction ratio n = ω_in/ω_out")
-    parser.add_argument("--k-in", type=float, required=True, metavar="NM_PER_A",
+    parser.add_argument("--k-in", type=options.positive, required=True, metavar="NM_PER_A",
                         help="torque constant of the input motor, N·m/A")
-    parser.add_argument("--k-out", type=float, required=True, metavar="NM_PER_A",
+    parser.add_argument("--k-out", type=options.positive, required=True, metavar="NM_PER_A",
                         help="torque constant of the output motor, N·m/A")
 
 

@@ -6,17 +6,19 @@ import argparse
 from typing import Any
 
 from stand import IdentifyResult, identify, read_run
+from stand.cli import options
 from stand.ident.derivatives import METHODS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", help="single-motor run file (CSV, CONTRACT §1)")
+    parser.add_argument("run", type=options.input_file,
+                        help="single-motor run file (CSV, CONTRACT §1)")
     parser.add_argument("--method", choices=METHODS, default="default",
                         help="derivatives: 'default' kernel filtering, 'paper' forward Euler "
                              "(seed 000 §4.1)")
-    parser.add_argument("--no-load-current", type=float, default=0.0, metavar="A",
+    parser.add_argument("--no-load-current", type=options.non_negative, default=0.0, metavar="A",
                         help="no-load current subtracted from the measured current (§5.1), A")
-    parser.add_argument("--half-width", type=int, default=None,
+    parser.add_argument("--half-width", type=options.whole(1, 10**5), default=None,
                         help="half width of the default method's kernel, samples "
                              "(default: chosen from the current's noise)")
 

@@ -29,6 +29,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from stand.cli import options
 from stand.delimited import TableFormat
 from stand.errors import InputError
 from stand.idim import DEFAULT_BANDWIDTH_HZ, idim_run
@@ -41,33 +42,34 @@ log = logging.getLogger("stand")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("source", help="file to import: .mat, .csv/.txt, .mf4, .log/.asc/.blf")
-    parser.add_argument("-o", "--output", help="run file to write (CSV)")
+    parser.add_argument("source", type=options.input_file,
+                        help="file to import: .mat, .csv/.txt, .mf4, .log/.asc/.blf")
+    parser.add_argument("-o", "--output", type=options.output_file, help="run file to write (CSV)")
     parser.add_argument("--kind", choices=list(COLUMNS), default="single", help="kind of run")
     parser.add_argument("--map", action="append", default=[], metavar="TARGET=EXPR",
                         help="run column from a variable, e.g. current_A=vir*gtau, "
                              "position_rad=data[:,2], time_s=t (repeatable)")
-    parser.add_argument("--period", type=float,
+    parser.add_argument("--period", type=options.period,
                         help="sample period, s, to make time_s when it is not mapped; for a CAN "
                              "trace without 0x1006, its SYNC period")
     parser.add_argument("--decimal", choices=[".", ","], default=".",
                         help="text files: decimal mark (',' for many scope exports)")
-    parser.add_argument("--skip-rows", type=int, default=0, metavar="N",
+    parser.add_argument("--skip-rows", type=options.whole(0, 10**6), default=0, metavar="N",
                         help="text files: lines to skip before the header (a units row under "
                              "the header is detected)")
     parser.add_argument("--motor", help="CAN traces: motor profile giving encoder counts per "
                                         "revolution and rated current")
     parser.add_argument("--eds", help="CAN traces: the drives' EDS (default: motorstand's)")
-    parser.add_argument("--node", type=int, help="CAN traces: decode this node only")
+    parser.add_argument("--node", type=options.whole(1, 127), help="CAN traces: decode this node only")
     parser.add_argument("--dbc", help="CAN traces: decode the signals of this DBC instead of "
                                       "CANopen PDOs (then --map the signals)")
     parser.add_argument("--list", action="store_true",
                         help="only list the file's variables and their shapes")
     parser.add_argument("--idim", action="store_true",
                         help="also run IDIM-LS (M, Fv, Fc, offset) on the imported single run")
-    parser.add_argument("--kt", type=float, default=1.0,
+    parser.add_argument("--kt", type=options.positive, default=1.0,
                         help="--idim: force or torque per unit of current_A (default 1)")
-    parser.add_argument("--bandwidth", type=float, default=DEFAULT_BANDWIDTH_HZ,
+    parser.add_argument("--bandwidth", type=options.positive, default=DEFAULT_BANDWIDTH_HZ,
                         help="--idim: closed-loop bandwidth, Hz (sets filter and decimation)")
     parser.add_argument("--friction", choices=["symmetric", "asymmetric"], default="symmetric",
                         help="--idim: friction model")

@@ -14,6 +14,7 @@ import logging
 from dataclasses import replace
 from typing import Any
 
+from stand.cli import options
 from stand.controller import StandController, load_experiment
 from stand.jsonable import to_jsonable
 from stand.settings import get_settings
@@ -23,16 +24,19 @@ log = logging.getLogger("stand")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("experiment", help="experiment profile (name under profiles/experiments or path)")
-    parser.add_argument("-o", "--output", required=True, help="directory for run files and traces")
+    parser.add_argument("-o", "--output", required=True, type=options.output_dir,
+                        help="directory for run files and traces")
     parser.add_argument("--interface", help="python-can interface (default: STAND_BUS_INTERFACE)")
     parser.add_argument("--channel", help="python-can channel (default: STAND_BUS_CHANNEL)")
     parser.add_argument("--time-mode", choices=["lockstep", "realtime"],
                         help="lockstep (simulated drives) or realtime (default: STAND_TIME_MODE)")
     parser.add_argument("--simulate", action=argparse.BooleanOptionalAction, default=None,
                         help="simulate the drives in this process (default: on 'virtual' only)")
-    parser.add_argument("--seed", type=int, default=None, help="seed of the simulated sensor noise")
-    parser.add_argument("--repeats", type=int, help="override the profile's repeats")
-    parser.add_argument("--duration", type=float, help="override the profile's run length, s")
+    parser.add_argument("--seed", type=options.seed, default=None,
+                        help="seed of the simulated sensor noise")
+    parser.add_argument("--repeats", type=options.whole(1, 100), help="override the profile's repeats")
+    parser.add_argument("--duration", type=options.duration,
+                        help="override the profile's run length, s")
     parser.add_argument("--trace-format", choices=["log", "asc", "blf"], default="log",
                         help="raw trace of each run: candump .log, Vector .asc or .blf")
 

@@ -10,6 +10,7 @@ import argparse
 import logging
 from typing import Any
 
+from stand.cli import options
 from stand.datadir import DataDirLock
 from stand.errors import InputError
 from stand.settings import get_settings
@@ -26,7 +27,7 @@ def is_loopback(host: str) -> bool:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", help="address to bind (default: setting STAND_HOST, 127.0.0.1)")
-    parser.add_argument("--port", type=int, help="TCP port (default: setting STAND_PORT, 8000)")
+    parser.add_argument("--port", type=options.port, help="TCP port (default: setting STAND_PORT, 8000)")
     parser.add_argument("--log-level", default="info",
                         choices=["critical", "error", "warning", "info", "debug"])
 

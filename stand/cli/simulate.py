@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from stand.errors import InputError
+from stand.cli import options
+from stand.errors import InputError, NotFoundError
 from stand.excitation import EXCITATIONS
 from stand.physics.effects import Effects
 from stand.runfile import write_run
@@ -29,23 +30,57 @@ def parse_effect(text: str) -> tuple[str, dict[str, float]]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("profile", help="motor or stand profile (name or YAML path)")
-    parser.add_argument("-o", "--output", required=True, help="run file to write (CSV)")
-    parser.add_argument("--duration", type=float, default=10.0, help="stand time, s")
-    parser.add_argument("--period", type=float, help="sample period, s (default: profile)")
+    parser.add_argument("-o", "--output", required=True, type=options.output_file,
+                        help="run file to write (CSV)")
+    parser.add_argument("--duration", type=options.duration, default=10.0, help="stand time, s")
+    parser.add_argument("--period", type=options.period, help="sample period, s (default: profile)")
     parser.add_argument("--mode", choices=["voltage", "current", "speed"],
                         help="drive mode (default: the profile's)")
     parser.add_argument("--excitation", choices=EXCITATIONS, default="prbs")
-    parser.add_argument("--level", type=float, help="mean command (V, A or rad/s)")
-    parser.add_argument("--amplitude", type=float, help="excursion of the command")
-    parser.add_argument("--hold", type=int, default=10, help="samples a random value is held")
-    parser.add_argument("--step-time", type=float, default=0.0, help="time of a step, s")
+    parser.add_argument("--level", type=options.finite, help="mean command (V, A or rad/s)")
+    parser.add_argument("--amplitude", type=options.non_negative, help="excursion of the command")
+    parser.add_argument("--hold", type=options.whole(1, 10**6), default=10,
+                        help="samples a random value is held")
+    parser.add_argument("--step-time", type=options.non_negative, default=0.0,
+                        help="time of a step, s")
     parser.add_argument("--effect", action="append", default=[], metavar="NAME[:p=v,...]",
+                        type=options.effect,
                         help="add an effect of CONTRACT §3 (repeatable); 'none' drops "
                              "the profile's effects")
-    parser.add_argument("--added-inertia", type=float, default=0.0, help="disk inertia, kg·m²")
-    parser.add_argument("--load-current", type=float, default=0.5,
+    parser.add_argument("--added-inertia", type=options.non_negative, default=0.0,
+                        help="disk inertia, kg·m²")
+    parser.add_argument("--load-current", type=options.non_negative, default=0.5,
                         help="stand profiles: output-motor load step, A")
-    parser.add_argument("--seed", type=int, default=None, help="seed of noise and excitation")
+    parser.add_argument("--seed", type=options.seed, default=None,
+                        help="seed of noise and excitation")
+    options.require(parser, options.samples_within())
+    options.require(parser, _delay_within_run)
+
+
+def _delay_within_run(args: argparse.Namespace) -> str:
+    """A ``delay`` effect must lag by fewer samples than the run has."""
+    for text in args.effect:
+        name, params = parse_effect(text)
+        if name != "delay" or "k" not in params:
+            continue
+        try:
+            dt = args.period or _profile_period(args.profile)
+        except (NotFoundError, InputError):
+            return ""  # the profile's own error comes when the command runs
+        samples = args.duration / dt
+        if params["k"] >= samples:
+            return (f"argument --effect: {text!r}: a lag of {params['k']:g} samples is not "
+                    f"shorter than the run ({samples:.0f} samples)")
+    return ""
+
+
+def _profile_period(profile: str) -> float:
+    from stand.profiles import load_motor, load_stand
+
+    try:
+        return float(load_stand(profile).sample_period_s)
+    except NotFoundError:
+        return float(load_motor(profile).sample_period_s)
 
 
 def effect_options(options: list[str]) -> tuple[dict[str, dict[str, float]], bool]:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from stand import InputError, Run, StepResult, read_run, step_identify
+from stand.cli import options
 from stand.stepid import METHODS, PARAM_NAMES, simulated_response
 from stand.stepid.model import HOLDS, PARAM_UNITS
 
@@ -39,7 +40,8 @@ def parse_known(items: list[str]) -> dict[str, float]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("runs", nargs="+", metavar="RUN.csv", help="voltage-step run files")
+    parser.add_argument("runs", nargs="+", metavar="RUN.csv", type=options.input_file,
+                        help="voltage-step run files")
     parser.add_argument("--known", action="append", default=[], metavar="NAME=VALUE",
                         help=f"a known parameter ({', '.join(PARAM_NAMES)}; SI units), "
                              "repeatable; it comes back as given")
@@ -51,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "drives report it) or starting (following) at time_s[k]")
     parser.add_argument("--speed-only", action="store_true",
                         help="ignore current_A even when the runs have it")
-    parser.add_argument("--plot", metavar="FILE.png",
+    parser.add_argument("--plot", metavar="FILE.png", type=options.plot_file,
                         help="write measured vs simulated speed and the residual")
 
 

@@ -6,21 +6,24 @@ import argparse
 from typing import Any
 
 from stand import TorqueConstantResult, read_run, torque_constant
+from stand.cli import options
 from stand.ident.derivatives import METHODS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-load", nargs="+", required=True, metavar="RUN.csv",
+                        type=options.input_file,
                         help="no-load runs (single-motor CSV), one per repeat")
     parser.add_argument("--loaded", nargs="+", required=True, metavar="RUN.csv",
+                        type=options.input_file,
                         help="runs with the added inertia, paired in order with --no-load")
-    parser.add_argument("--added-inertia", type=float, required=True, metavar="KGM2",
+    parser.add_argument("--added-inertia", type=options.positive, required=True, metavar="KGM2",
                         help="inertia of the added disk, kg·m²")
     parser.add_argument("--method", choices=METHODS, default="default",
                         help="derivatives: 'default' kernel filtering, 'paper' forward Euler")
     parser.add_argument("--no-compensation", action="store_true",
                         help="do not subtract the no-load current (seed 000 §5.1)")
-    parser.add_argument("--half-width", type=int, default=None,
+    parser.add_argument("--half-width", type=options.whole(1, 10**5), default=None,
                         help="half width of the default method's kernel, samples "
                              "(default: chosen from the current's noise)")
 

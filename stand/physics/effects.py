@@ -195,6 +195,8 @@ def _build(kind: type, params: Mapping[str, Any], where: str) -> Any:
             ) from None
         if not math.isfinite(value):
             raise InputError(f"{where}.{name}: {value} is not finite")
+        if field.type in ("int", int) and value != round(value):
+            raise InputError(f"{where}.{name}: {value:g} is not a whole number")
         values[name] = int(round(value)) if field.type in ("int", int) else value
     effect = kind(**values)
     _check_physics(effect, where)
