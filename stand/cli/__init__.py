@@ -99,8 +99,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=f"stand {name}", description=help_text)
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     module.add_arguments(parser)
-    args = parser.parse_args(argv[1:])
-    check_options(parser, args)  # checks across options (exit 2 like argparse's own)
+    try:  # argparse exits (2 on a bad option, 0 for --help); callers get the code back
+        args = parser.parse_args(argv[1:])
+        check_options(parser, args)  # checks across options, reported like argparse's own
+    except SystemExit as stop:
+        return stop.code if isinstance(stop.code, int) else 0
     try:
         result = module.run(args)
     except (InputError, NotFoundError) as exc:
