@@ -80,14 +80,18 @@ seed = whole(0, MAX_SEED)
 port = whole(0, 65535)
 
 
-def _try_create_in(directory: Path) -> None:
-    """Create and remove a file in ``directory``: the one sure test that it takes files."""
+def _takes_files(text: str, directory: Path) -> str:
+    """``text`` when ``directory`` is one that takes new files; tried by creating and
+    removing one, the one sure test."""
+    if not directory.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r}: {directory} is not a directory")
     try:
         with tempfile.NamedTemporaryFile(dir=directory, prefix=".stand-check-"):
             pass
     except OSError as exc:
-        raise argparse.ArgumentTypeError(f"cannot write into {directory}: "
+        raise argparse.ArgumentTypeError(f"{text!r}: cannot write into {directory}: "
                                          f"{exc.strerror or exc}") from None
+    return text
 
 
 def output_file(text: str, suffixes: tuple[str, ...] = ()) -> str:
@@ -101,11 +105,7 @@ def output_file(text: str, suffixes: tuple[str, ...] = ()) -> str:
         raise argparse.ArgumentTypeError(f"{text!r} is a directory; expected a file name")
     if path.exists() and not path.is_file():
         raise argparse.ArgumentTypeError(f"{text!r} exists and is not a regular file")
-    parent = path.parent
-    if not parent.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r}: the directory {parent} does not exist")
-    _try_create_in(parent)
-    return text
+    return _takes_files(text, path.parent)
 
 
 def plot_file(text: str) -> str:
@@ -122,10 +122,7 @@ def output_dir(text: str) -> str:
     existing = path
     while not existing.exists():
         existing = existing.parent
-    if not existing.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r}: {existing} is not a directory")
-    _try_create_in(existing)
-    return text
+    return _takes_files(text, existing)
 
 
 def input_file(text: str) -> str:

@@ -19,6 +19,7 @@ import statistics
 import sys
 import tempfile
 import time
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
@@ -98,22 +99,32 @@ def long_run_csv() -> str:
     return format_run(simulate_motor(plant, "speed", command, dt).columns)
 
 
-async def fire(base_url: str, headers: dict[str, str], run_ids: list[str]) -> tuple[list[float], int, float]:
+async def timed_concurrently(count: int, send: Callable[[int], Awaitable[httpx.Response]],
+                             expected: int) -> tuple[list[float], int, float]:
+    """``send(k)`` for k < ``count`` all at once: latencies (s), answers other than
+    ``expected``, wall time (s)."""
     latencies: list[float] = []
     errors = 0
-    async with httpx.AsyncClient(base_url=base_url, headers=headers, timeout=600) as client:
-        async def one(k: int) -> None:
-            nonlocal errors
-            t0 = time.perf_counter()
-            answer = await client.post("/identify", json={"run": run_ids[k % len(run_ids)]})
-            latencies.append(time.perf_counter() - t0)
-            if answer.status_code != 200:
-                errors += 1
-                print(f"  request {k}: {answer.status_code} {answer.text[:200]}", file=sys.stderr)
+
+    async def one(k: int) -> None:
+        nonlocal errors
         t0 = time.perf_counter()
-        await asyncio.gather(*(one(k) for k in range(REQUESTS)))
-        wall = time.perf_counter() - t0
-    return latencies, errors, wall
+        answer = await send(k)
+        latencies.append(time.perf_counter() - t0)
+        if answer.status_code != expected:
+            errors += 1
+            print(f"  request {k}: {answer.status_code} {answer.text[:200]}", file=sys.stderr)
+
+    t0 = time.perf_counter()
+    await asyncio.gather(*(one(k) for k in range(count)))
+    return latencies, errors, time.perf_counter() - t0
+
+
+async def fire(base_url: str, headers: dict[str, str], run_ids: list[str]) -> tuple[list[float], int, float]:
+    async with httpx.AsyncClient(base_url=base_url, headers=headers, timeout=600) as client:
+        return await timed_concurrently(
+            REQUESTS, lambda k: client.post("/identify", json={"run": run_ids[k % len(run_ids)]}),
+            200)
 
 
 def bench_identify(workdir: Path) -> None:
@@ -160,25 +171,12 @@ def _watch_health(base_url: str, stop: Any, out: Any) -> None:
 async def _upload_all(base_url: str, headers: dict[str, str], text: str,
                       ) -> tuple[list[float], int, float]:
     body, content_type = _multipart(text)
-    uploads: list[float] = []
-    errors = 0
     limits = httpx.Limits(max_connections=UPLOADS + 5)
     async with httpx.AsyncClient(base_url=base_url, headers=headers, timeout=900,
                                  limits=limits) as client:
-        async def one(k: int) -> None:
-            nonlocal errors
-            t0 = time.perf_counter()
-            answer = await client.post("/runs/upload", content=body,
-                                       headers={"Content-Type": content_type})
-            uploads.append(time.perf_counter() - t0)
-            if answer.status_code != 201:
-                errors += 1
-                print(f"  upload {k}: {answer.status_code} {answer.text[:200]}", file=sys.stderr)
-
-        t0 = time.perf_counter()
-        await asyncio.gather(*(one(k) for k in range(UPLOADS)))
-        wall = time.perf_counter() - t0
-    return uploads, errors, wall
+        return await timed_concurrently(
+            UPLOADS, lambda k: client.post("/runs/upload", content=body,
+                                           headers={"Content-Type": content_type}), 201)
 
 
 def _multipart(text: str) -> tuple[bytes, str]:

@@ -142,6 +142,18 @@ def upload_text(samples: int) -> str:
     return format_run({"time_s": t, "current_A": np.sin(7 * t), "position_rad": np.cos(3 * t)})
 
 
+def assert_degraded(c: httpx.Client, reason: str) -> None:
+    """/health names the storage fault; a new job is refused (503) or taken and ends
+    ``failed``: the worker lives on, nothing stays queued."""
+    health = c.get("/health").json()
+    assert health["status"] == "degraded" and reason in health["storage"]["reason"]
+    started = c.post("/runs", json=LONG_RUN)
+    if started.status_code == 202:
+        assert final(c, started.json()["id"])["state"] == "failed"
+    else:
+        assert started.status_code == 503
+
+
 def test_database_full_degrades_and_recovers(tmp_path: Path) -> None:
     env = {"STAND_DB_MAX_BYTES": str(2 * 1024 * 1024)}
     with serve(tmp_path, extra_env=env) as server, server.client() as c:
@@ -152,14 +164,7 @@ def test_database_full_degrades_and_recovers(tmp_path: Path) -> None:
         assert failed["samples"] > 0  # the samples before the disk filled are kept
         big = c.post("/runs/upload", files={"file": ("big.csv", upload_text(200_000))})
         assert big.status_code == 503 and big.json()["error"] == "storage"
-        health = c.get("/health").json()
-        assert health["status"] == "degraded" and "full" in health["storage"]["reason"]
-        # The worker lives on: the next job is taken and ends (it cannot be stored).
-        again = c.post("/runs", json=LONG_RUN)
-        if again.status_code == 202:
-            assert final(c, again.json()["id"])["state"] == "failed"
-        else:
-            assert again.status_code == 503
+        assert_degraded(c, "full")
         # Reading and analysing what is stored still works; deleting makes room.
         assert c.post("/identify", json={"run": run_id}).status_code == 200
         assert c.delete(f"/runs/{run_id}").status_code == 204
@@ -180,14 +185,7 @@ def test_file_size_limit_fails_writes_not_the_service(tmp_path: Path) -> None:
                 break
         assert answers[-1].status_code == 503 and answers[-1].json()["error"] == "storage"
         assert {a.status_code for a in answers[:-1]} == {201}
-        health = c.get("/health").json()
-        assert health["status"] == "degraded" and "write failed" in health["storage"]["reason"]
-        # A run on a full disk ends (failed), and the worker is free for the next one.
-        started = c.post("/runs", json=LONG_RUN)
-        if started.status_code == 202:
-            assert final(c, started.json()["id"])["state"] == "failed"
-        else:
-            assert started.status_code == 503
+        assert_degraded(c, "write failed")
         # A body the server cannot even spool to its temporary file: 503, not 400/500.
         spool = c.post("/runs/upload", files={"file": ("big.csv", upload_text(200_000))})
         assert spool.status_code == 503, spool.text
