@@ -26,7 +26,7 @@ from stand.cli import main
 from tests.integration.test_api_support import Server, serve
 
 #: Drawn requests per operation and kind of body; bounded to keep the suite fast.
-MAX_EXAMPLES = 8
+MAX_EXAMPLES = 6
 FUZZ = settings(max_examples=MAX_EXAMPLES, deadline=None, derandomize=True,
                 suppress_health_check=list(HealthCheck))
 
