@@ -19,6 +19,8 @@ from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import Field, File, parse_form
 from starlette.datastructures import FormData, Headers, UploadFile
 
+from stand.errors import StorageError
+
 #: Body bytes kept in memory before the spool goes to a temporary file.
 SPOOL_MEMORY_BYTES = 1 << 20
 #: Most files and most plain fields in one form.
@@ -78,5 +80,8 @@ async def read_form(request: Request, lanes: anyio.CapacityLimiter) -> FormData:
             else:
                 spool.write(chunk)
         return await anyio.to_thread.run_sync(_parse, headers, spool, limiter=lanes)
+    except OSError as exc:  # the server's disk, not the caller's form (503)
+        raise StorageError(f"cannot store the request body in a temporary file: {exc}; "
+                           "free disk space on the server") from exc
     finally:
         spool.close()
