@@ -82,6 +82,7 @@ def create_app(settings: Settings | None = None,
             try:
                 yield
             finally:
+                app.state.parse_lanes.close()
                 jobs.close()
                 storage.close()
         finally:

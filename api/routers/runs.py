@@ -76,7 +76,7 @@ async def upload_run(storage: StorageDep, settings: SettingsDep, request: Reques
                      ) -> dict[str, Any]:
     """Store an uploaded run file (multipart form: ``file``, ``kind``); 201 with the new
     run. Uploads older than ``STAND_UPLOAD_RETENTION_S`` (when set) are deleted."""
-    form = await read_form(request, request.app.state.parse_lanes)
+    form = await read_form(request, request.app.state.parse_lanes.limiter)
     try:
         file, kind = _upload_fields(form)
         run = await read_upload(file, kind, settings.upload_limit_bytes, "file",
