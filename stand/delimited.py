@@ -63,6 +63,11 @@ def _delimiter(lines: list[str], decimal: str) -> str:
         return ";" if decimal == "," else ","
 
 
+#: Longest line of a delimited file, characters: thousands of columns of numbers, and far
+#: below what makes the csv module choke (its field limit is 131 072).
+MAX_LINE_CHARS = 100_000
+
+
 def read_table(path: Path, fmt: TableFormat = TableFormat()) -> tuple[dict[str, np.ndarray], list[str]]:
     """The columns of a delimited file by header name, the whole table as ``data``, and
     notes on what was detected (a units row).
@@ -79,6 +84,10 @@ def read_table(path: Path, fmt: TableFormat = TableFormat()) -> tuple[dict[str, 
     if not lines:
         skipped = f" after skipping {fmt.skip_rows}" if fmt.skip_rows else ""
         raise InputError(f"{path}: no data rows{skipped}")
+    longest = max(range(len(lines)), key=lambda k: len(lines[k]))
+    if len(lines[longest]) > MAX_LINE_CHARS:
+        raise InputError(f"{path}: line {longest + 1} is {len(lines[longest])} characters long, "
+                         f"more than {MAX_LINE_CHARS}; expected one sample a line")
     delimiter = _delimiter(lines, fmt.decimal)
     if delimiter == "," and fmt.decimal == ",":
         raise InputError(f"{path}: ',' is both the decimal mark and the delimiter; such a file "

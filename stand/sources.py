@@ -76,6 +76,7 @@ class Source:
 
 def _mat_variables(path: Path) -> dict[str, np.ndarray]:
     from scipy import io as sio
+    from scipy.io.matlab import MatReadError
 
     try:
         raw = sio.loadmat(str(path), simplify_cells=True)
@@ -84,7 +85,7 @@ def _mat_variables(path: Path) -> dict[str, np.ndarray]:
             f"{path}: MATLAB v7.3 (HDF5) files are not supported; save with "
             "save(..., '-v7') or export CSV"
         ) from exc
-    except (ValueError, TypeError, OSError) as exc:
+    except (ValueError, TypeError, OSError, MatReadError) as exc:  # MatReadError: empty file
         raise InputError(f"{path}: not a readable MAT file ({exc})") from exc
     variables: dict[str, np.ndarray] = {}
 
