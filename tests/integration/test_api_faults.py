@@ -12,7 +12,6 @@ import os
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -26,28 +25,18 @@ from stand.errors import DataDirLocked, StandError, StorageError
 from stand.jobs import JobManager, RunOutcome, RunPlan
 from stand.runfile import format_run
 from stand.storage import Storage
-from tests.integration.test_api_support import ROOT, free_port, serve
+from tests.integration.test_api_support import ROOT, free_port, serve, wait_for
 
 #: How long a state change may take to show, s (generous: 2 shared cores under load).
 WAIT_S = 60.0
 LONG_RUN = {"profile": "seed000_no_load", "overrides": {"duration_s": 600.0}}
 
 
-def wait_for(what: str, check: Any, timeout_s: float = WAIT_S) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"{what}: not within {timeout_s} s")
-
-
 def final(client: httpx.Client, run_id: str) -> dict[str, Any]:
     def done() -> dict[str, Any] | None:
         run: dict[str, Any] = client.get(f"/runs/{run_id}").json()
         return run if run["state"] not in ("queued", "running") else None
-    result: dict[str, Any] = wait_for(f"run {run_id} to end", done)
+    result: dict[str, Any] = wait_for(done, WAIT_S, f"run {run_id} to end")
     return result
 
 
@@ -97,7 +86,7 @@ def test_worker_survives_a_failed_final_state(tmp_path: Path) -> None:
     jobs = JobManager(storage, runner)
     try:
         first = jobs.submit({})[0].id
-        wait_for("the failed final state to be pending", lambda: jobs.fault)
+        wait_for(lambda: jobs.fault, WAIT_S, "the failed final state to be pending")
         assert first in (jobs.fault or "")
         assert storage.get_run(first).state == "running"  # not stored: the disk is full
         assert storage.fault is not None and "full" in storage.fault
@@ -105,10 +94,10 @@ def test_worker_survives_a_failed_final_state(tmp_path: Path) -> None:
         # takes the next job.
         storage._db.execute("PRAGMA max_page_count=100000")
         runner.message_bytes = 0
-        wait_for("the pending state to be stored", lambda: jobs.fault is None)
+        wait_for(lambda: jobs.fault is None, WAIT_S, "the pending state to be stored")
         assert storage.get_run(first).state == "failed"
         second = jobs.submit({"chunks": 3})[0].id
-        wait_for("the next job to run", lambda: storage.get_run(second).state == "done")
+        wait_for(lambda: storage.get_run(second).state == "done", WAIT_S, "the next job to run")
         assert storage.get_run(second).samples == 3000
         assert storage.fault is None
     finally:
@@ -122,13 +111,13 @@ def test_a_submit_refused_by_storage_leaves_the_worker_running(tmp_path: Path) -
     jobs = JobManager(storage, runner)
     try:
         queued = jobs.submit({"chunks": 1})[0].id
-        wait_for("the first job", lambda: storage.get_run(queued).state == "done")
+        wait_for(lambda: storage.get_run(queued).state == "done", WAIT_S, "the first job")
         storage._db.execute("PRAGMA query_only=ON")  # every write now fails
         with pytest.raises(StorageError, match="readonly|read-only|query_only"):
             jobs.submit({"chunks": 1})  # create_run fails: a clear error, nothing queued
         storage._db.execute("PRAGMA query_only=OFF")
         after = jobs.submit({"chunks": 2})[0].id
-        wait_for("the worker to take the next job", lambda: storage.get_run(after).state == "done")
+        wait_for(lambda: storage.get_run(after).state == "done", WAIT_S, "the worker to take the next job")
         assert runner.executed[-1] == after
     finally:
         jobs.close()
@@ -199,7 +188,7 @@ def test_file_size_limit_fails_writes_not_the_service(tmp_path: Path) -> None:
 def test_second_server_refuses_and_names_the_owner(tmp_path: Path) -> None:
     with serve(tmp_path) as first, first.client() as c:
         run_id = c.post("/runs", json=LONG_RUN).json()["id"]
-        seen = wait_for("samples", lambda: c.get(f"/runs/{run_id}").json()["samples"])
+        seen = wait_for(lambda: c.get(f"/runs/{run_id}").json()["samples"], WAIT_S, "samples")
         env = {k: v for k, v in os.environ.items() if not k.startswith("STAND_")}
         env.update(STAND_DATA_DIR=str(tmp_path), STAND_API_KEY="other", PYTHONPATH=str(ROOT))
         second = subprocess.run(
@@ -209,7 +198,7 @@ def test_second_server_refuses_and_names_the_owner(tmp_path: Path) -> None:
         assert f"PID {first.process.pid}" in second.stderr
         run = c.get(f"/runs/{run_id}").json()
         assert run["state"] == "running", "the second server touched the first one's run"
-        wait_for("more samples", lambda: c.get(f"/runs/{run_id}").json()["samples"] > seen)
+        wait_for(lambda: c.get(f"/runs/{run_id}").json()["samples"] > seen, WAIT_S, "more samples")
         assert c.post("/stop").json()["stopped_run"] == run_id
 
 

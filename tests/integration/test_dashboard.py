@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from stand.runfile import format_run
+from tests.integration import test_api_support
 from tests.integration.browser import chromium, needs_chromium
 from tests.integration.test_api_support import Server, serve
 
@@ -32,13 +33,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def wait_for(condition, timeout_s: float = PAGE_TIMEOUT_S, what: str = "condition"):  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"{what}: not within {timeout_s} s")
+    return test_api_support.wait_for(condition, timeout_s, what)
 
 
 def click_row(driver, table: str, row_id: str) -> None:  # type: ignore[no-untyped-def]
