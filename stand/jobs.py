@@ -6,7 +6,7 @@ after the other on a :class:`StandRunner` — the stand controller over the bus,
 direct simulation. Every sample chunk the runner hands over is committed to
 :class:`~stand.storage.Storage` at once, so a crash keeps the samples recorded so far.
 
-Run states: ``queued`` → ``running`` → ``done`` | ``stopped`` (POST /stop) | ``aborted``
+Run states: ``queued`` → ``running`` → ``done`` | ``stopped`` (a stop request) | ``aborted``
 (the stand aborted the run, or the service died during it) | ``failed`` (an error).
 
 The worker outlives anything a job throws, storage errors included: a final state that
@@ -159,7 +159,7 @@ class JobManager:
             self._cancelled.update(cancelled)
         drives = self.runner.quick_stop_all()
         for run_id in cancelled:
-            self._mark(run_id, state="stopped", message="cancelled by POST /stop")
+            self._mark(run_id, state="stopped", message="cancelled by a stop request")
         return {"stopped_run": current, "cancelled_runs": cancelled, "drives": drives,
                 "wall_time_s": time.monotonic() - started}
 
@@ -287,7 +287,7 @@ class JobManager:
                            message="the service shut down during the run; samples so far are kept")
             elif self._stop.is_set():
                 self._mark(run_id, state="stopped", meta=outcome.meta,
-                           message=outcome.message or "stopped by POST /stop (quick stop)")
+                           message=outcome.message or "stopped by a stop request (quick stop)")
             else:
                 self._mark(run_id, state="done", progress=1.0, meta=outcome.meta,
                            message=outcome.message)
@@ -344,7 +344,7 @@ class ControllerRunner:
         """The runs of ``request``; ``profile`` is a shipped experiment's *name*.
 
         Requests come from the network: a path would read any YAML file on this machine
-        and tell the caller whether it exists, so only names in ``GET /profiles`` count.
+        and tell the caller whether it exists, so only the names of the shipped experiment profiles count.
         """
         from pydantic import ValidationError
 
@@ -355,13 +355,13 @@ class ControllerRunner:
         known = list_profiles().get("experiments", [])
         if name not in known:
             raise NotFoundError(f"profile: no experiment profile of that name; known: "
-                                f"{', '.join(known)} (GET /profiles)")
+                                f"{', '.join(known)}")
         experiment = load_experiment(name)
         overrides = dict(request.get("overrides") or {})
         for key in ("name", "motor", "stand"):
             if key in overrides:
                 raise InputError(f"overrides.{key}: cannot be changed by a request; choose another "
-                                 "experiment profile (GET /profiles)")
+                                 "of the shipped experiment profiles")
         try:
             experiment = ExperimentProfile(**{**experiment.model_dump(), **overrides})
         except ValidationError as exc:

@@ -190,7 +190,7 @@ class Storage:
         except sqlite3.Error as exc:
             self.fault = f"{action} failed on {self.path}: {exc}"
             raise StorageError(f"storage: {self.fault}; free disk space or check the "
-                               "database file (GET /health)") from exc
+                               "database file") from exc
 
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
@@ -321,7 +321,7 @@ class Storage:
         """The record of run ``run_id``; :class:`NotFoundError` if unknown."""
         rows = self._query("SELECT * FROM runs WHERE id=?", (run_id,))
         if not rows:
-            raise NotFoundError(f"no run {run_id!r}; GET /runs lists the stored runs")
+            raise NotFoundError(f"no run {run_id!r}; the list of stored runs gives their ids")
         return _record(rows[0])
 
     def list_runs(self, limit: int = 100, offset: int = 0, state: str | None = None) -> list[RunRecord]:
@@ -361,10 +361,10 @@ class Storage:
         with self._transaction() as db:
             row = db.execute("SELECT state FROM runs WHERE id=?", (run_id,)).fetchone()
             if row is None:
-                raise NotFoundError(f"no run {run_id!r}; GET /runs lists the stored runs")
+                raise NotFoundError(f"no run {run_id!r}; the list of stored runs gives their ids")
             if row["state"] in LIVE_STATES:
-                raise InputError(f"run {run_id} is {row['state']}; POST /stop ends it, then "
-                                 "it can be deleted")
+                raise InputError(f"run {run_id} is {row['state']}; stop it first, then it can "
+                                 "be deleted")
             db.execute("DELETE FROM chunks WHERE run_id=?", (run_id,))
             db.execute("DELETE FROM runs WHERE id=?", (run_id,))
 
