@@ -163,5 +163,5 @@ def _run(items: list[Item], args: tuple[str, dict[str, Any], str | None], client
     return map_items(run_item, items, *args, client=client, on_progress=on_progress, on_lost=_lost)
 
 
-__all__ = ["OPERATIONS", "BatchResult", "ClusterError", "Fleet", "Item", "expand_inputs",
+__all__ = ["OPERATIONS", "BatchResult", "ClusterError", "Fleet", "Item", "dask_client", "expand_inputs",
            "map_items", "run_batch"]
