@@ -19,7 +19,7 @@ from fastapi import FastAPI
 from api import errors, pages
 from api.limits import BodyLimit
 from api.origin import LoopbackOnly
-from api.routers import analysis, health, profiles, results, runs, stand
+from api.routers import analysis, batch, health, profiles, results, runs, stand
 from api.uploads import parse_lanes
 from stand.datadir import DataDirLock
 from stand.jobs import SIMULATED_MASTER_OPTIONS, ControllerRunner, JobManager, StandRunner
@@ -97,7 +97,7 @@ def create_app(settings: Settings | None = None,
     if settings.api_key is None:
         app.add_middleware(LoopbackOnly)  # outermost: refused before anything is read
     for router in (health.router, profiles.router, runs.router, analysis.router, results.router,
-                   stand.router):
+                   stand.router, batch.router):
         app.include_router(router)
     pages.install(app)
     return app
