@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +52,8 @@ class BatchResult(JsonResult):
         pooling is ``none``).
     seconds : float
         Wall time of the batch, s.
+    cpu_seconds : float
+        CPU time the items took in their workers, summed, s.
     engine : str
         ``serial``, ``local:N`` (a LocalCluster of N processes) or the scheduler address.
     output : str
@@ -66,6 +68,7 @@ class BatchResult(JsonResult):
     rows: list[dict[str, Any]] = field(repr=False)
     fleets: list[Fleet]
     seconds: float
+    cpu_seconds: float
     engine: str
     output: str = ""
     fleets_output: str = ""
@@ -73,8 +76,6 @@ class BatchResult(JsonResult):
     def write(self, path: str | Path) -> BatchResult:
         """Write the table to ``path`` (.csv or .parquet); returns the result with
         ``output`` set."""
-        from dataclasses import replace
-
         return replace(self, output=str(write_table(path, self.rows)))
 
     def to_json(self) -> dict[str, Any]:
@@ -88,13 +89,14 @@ class BatchResult(JsonResult):
             "fleets": [f.to_json() for f in self.fleets],
             "seconds": self.seconds, "engine": self.engine,
             "seconds_per_item": self.seconds / self.items if self.items else None,
+            "cpu_seconds_per_item": self.cpu_seconds / self.items if self.items else None,
         }
 
 
 def run_batch(operation_name: str, inputs: Sequence[str] | Sequence[Item],
               options: Mapping[str, Any] | None = None, *, workers: int = 2,
               scheduler: str | None = None, client: Any = None,
-              database: str | Path | None = None, pool: str = "auto",
+              database: str | Path | None = None, pool: str = "auto", chunk: int = 1,
               on_progress: ProgressCallback | None = None) -> BatchResult:
     """Run one operation over many runs.
 
@@ -119,6 +121,9 @@ def run_batch(operation_name: str, inputs: Sequence[str] | Sequence[Item],
         The service's SQLite file, for stored runs.
     pool : str
         How items form fleets (:data:`~stand.batch.inputs.POOL_KEYS` or ``re:REGEX``).
+    chunk : int
+        Items per Dask task (:func:`~stand.batch.engine.map_items`); the rows do not
+        depend on it.
     on_progress : callable, optional
         ``on_progress(done, total)`` after every item.
 
@@ -139,19 +144,19 @@ def run_batch(operation_name: str, inputs: Sequence[str] | Sequence[Item],
     start = time.perf_counter()
     args = (op.name, checked, db)
     if client is not None:
-        outcomes, engine = _run(items, args, client, on_progress), "client"
+        outcomes, engine = _run(items, args, client, chunk, on_progress), "client"
     elif scheduler or workers > 0:
         with dask_client(scheduler, workers) as own:
-            outcomes = _run(items, args, own, on_progress)
+            outcomes = _run(items, args, own, chunk, on_progress)
         engine = scheduler or f"local:{workers}"
     else:
-        outcomes, engine = _run(items, args, None, on_progress), "serial"
+        outcomes, engine = _run(items, args, None, chunk, on_progress), "serial"
     seconds = time.perf_counter() - start
     table = rows(items, outcomes)
     groups = [item.group for item in items]
     fleet = fleets(outcomes, groups, op.fleet_field) if op.fleet_field else []
     return BatchResult(op.name, len(items), sum(1 for o in outcomes if o.error), table, fleet,
-                       seconds, engine)
+                       seconds, sum(o.cpu_seconds for o in outcomes), engine)
 
 
 def _lost(item: Item, exc: BaseException) -> Outcome:
@@ -159,8 +164,9 @@ def _lost(item: Item, exc: BaseException) -> Outcome:
 
 
 def _run(items: list[Item], args: tuple[str, dict[str, Any], str | None], client: Any,
-         on_progress: ProgressCallback | None) -> list[Outcome]:
-    return map_items(run_item, items, *args, client=client, on_progress=on_progress, on_lost=_lost)
+         chunk: int, on_progress: ProgressCallback | None) -> list[Outcome]:
+    return map_items(run_item, items, *args, client=client, chunk=chunk, on_progress=on_progress,
+                     on_lost=_lost)
 
 
 __all__ = ["OPERATIONS", "BatchResult", "ClusterError", "Fleet", "Item", "dask_client", "expand_inputs",

@@ -160,6 +160,9 @@ class Outcome:
         ``""``, or the error: its type and message.
     seconds : float
         Wall time of the item in its worker (reading the runs and the operation), s.
+    cpu_seconds : float
+        CPU time of the worker's process over the item, s: the item's cost, less
+        sensitive than ``seconds`` to what else the machine runs.
     sums : ndarray or None
         The Q-matrix sums ``G`` of an ``identify`` item (:func:`run_sums`), for pooling.
     """
@@ -168,6 +171,7 @@ class Outcome:
     result: dict[str, Any] | None
     error: str
     seconds: float
+    cpu_seconds: float = 0.0
     sums: np.ndarray | None = None
 
 
@@ -186,21 +190,22 @@ def run_item(item: Item, op_name: str, options: dict[str, Any],
     database : str, optional
         The service's SQLite file, for ``run:ID`` refs.
     """
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     op = OPERATIONS[op_name]
+    sums = None
     try:
         runs = [_load(ref, op.kind, database) for ref in item.refs]
-        result = op.call(runs, options)
-        sums = run_sums(runs[0], result.to_json()) if op.name == "identify" else None
-        return Outcome(item.index, result.to_json(), "", time.perf_counter() - start, sums)
+        result: dict[str, Any] | None = op.call(runs, options).to_json()
+        sums = run_sums(runs[0], result) if op.name == "identify" else None  # type: ignore[arg-type]
+        error = ""
     except StandError as exc:
-        return Outcome(item.index, None, f"{type(exc).__name__}: {exc}",
-                       time.perf_counter() - start)
+        result, error = None, f"{type(exc).__name__}: {exc}"
     except Exception as exc:  # noqa: BLE001 - a method that chokes on one item must not stop the batch
         where = traceback.extract_tb(exc.__traceback__)[-1]
-        return Outcome(item.index, None,
-                       f"{type(exc).__name__}: {exc} (at {Path(where.filename).name}:{where.lineno})",
-                       time.perf_counter() - start)
+        result = None
+        error = f"{type(exc).__name__}: {exc} (at {Path(where.filename).name}:{where.lineno})"
+    return Outcome(item.index, result, error, time.perf_counter() - start,
+                   time.process_time() - cpu, sums)
 
 
 def run_sums(run: Run, result: Mapping[str, Any]) -> np.ndarray:

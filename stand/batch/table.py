@@ -1,8 +1,9 @@
 """The batch table: one row per item, written as CSV or Parquet.
 
-A row holds ``item``, ``input``, ``group``, ``error`` ("" when the item succeeded) and
-``seconds``, then the operation's JSON fields (CONTRACT §2) as columns, in the order the
-first successful result gives them. A field whose value is a list or an object (``A``,
+A row holds ``item``, ``input``, ``group``, ``error`` ("" when the item succeeded),
+``seconds`` and ``cpu_seconds`` (the item's wall and CPU time in its worker), then the
+operation's JSON fields (CONTRACT §2) as columns, in the order the first successful
+result gives them. A field whose value is a list or an object (``A``,
 ``effects``, ``params``) is stored as its JSON text, so every column has one scalar type
 and a row reads back as the command's ``--json`` object. Numbers are written with 17
 significant digits in CSV (they read back to the same float); a failed item leaves its
@@ -22,7 +23,7 @@ from stand.batch.operations import Outcome
 from stand.errors import InputError
 
 #: Columns every table starts with.
-LEAD_COLUMNS = ("item", "input", "group", "error", "seconds")
+LEAD_COLUMNS = ("item", "input", "group", "error", "seconds", "cpu_seconds")
 FORMATS = (".csv", ".parquet")
 
 
@@ -35,7 +36,8 @@ def rows(items: Sequence[Item], outcomes: Sequence[Outcome]) -> list[dict[str, A
     table = []
     for item, outcome in zip(items, outcomes, strict=True):
         row: dict[str, Any] = {"item": item.index, "input": item.input, "group": item.group,
-                               "error": outcome.error, "seconds": outcome.seconds}
+                               "error": outcome.error, "seconds": outcome.seconds,
+                               "cpu_seconds": outcome.cpu_seconds}
         result = outcome.result or {}
         for name in fields:
             value = result.get(name)

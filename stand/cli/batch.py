@@ -70,6 +70,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "item in this process without Dask")
     engine.add_argument("--scheduler", metavar="ADDRESS",
                         help="an existing Dask scheduler (tcp://HOST:8786) instead of a local cluster")
+    engine.add_argument("--chunk", type=int, default=1, metavar="N",
+                        help="items per Dask task (default 1; larger for items of a few ms)")
     engine.add_argument("--db", metavar="FILE",
                         help="the service's SQLite file for run:/query: inputs "
                              "(default: the service's, from STAND_DATA_DIR / STAND_DB_PATH)")
@@ -152,7 +154,7 @@ def run(args: argparse.Namespace) -> BatchResult:
     progress = None if args.no_progress else ProgressBar()
     result = run_batch(args.operation, args.inputs, options_of(args), workers=args.workers,
                        scheduler=args.scheduler, database=_database(args), pool=args.pool,
-                       on_progress=progress).write(args.output)
+                       chunk=args.chunk, on_progress=progress).write(args.output)
     if result.fleets:
         path = fleets_path(args.output)
         partial = path.with_name(path.name + ".partial")

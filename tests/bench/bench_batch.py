@@ -50,7 +50,7 @@ def _same(a: BatchResult, b: BatchResult) -> bool:
     for x, y in zip(a.rows, b.rows, strict=True):
         for key, value in x.items():
             other = y[key]
-            if key == "seconds":
+            if key in ("seconds", "cpu_seconds"):
                 continue
             if isinstance(value, float) and isinstance(other, float):
                 if not math.isclose(value, other, rel_tol=1e-12, abs_tol=0.0):
@@ -62,17 +62,16 @@ def _same(a: BatchResult, b: BatchResult) -> bool:
         for p, q in zip(a.fleets, b.fleets, strict=True) if p.pooled and q.pooled)
 
 
-def _timed(operation: str, inputs: list[str], workers: int) -> tuple[BatchResult, float, float]:
-    """The batch, the cluster start time and the batch time, s."""
+def _timed(operation: str, inputs: list[str], workers: int,
+           chunk: int = 1) -> tuple[BatchResult, float]:
+    """The batch and its cluster's start time, s."""
     if workers == 0:
-        result = run_batch(operation, inputs, workers=0)
-        return result, 0.0, result.seconds
+        return run_batch(operation, inputs, workers=0), 0.0
     start = time.perf_counter()
     with dask_client(workers=workers) as client:
         started = time.perf_counter() - start
         client.run(lambda: __import__("stand.batch.operations"))  # warm the imports
-        result = run_batch(operation, inputs, client=client)
-    return result, started, result.seconds
+        return run_batch(operation, inputs, client=client, chunk=chunk), started
 
 
 def scaling(items: int) -> None:
@@ -85,22 +84,24 @@ def scaling(items: int) -> None:
         _write(folder / "holdout", pairs, 20_000)
         print(f"wrote {items} + {2 * pairs} run files of {RUN_S:g} s at {1 / PERIOD_S:g} Hz "
               f"({MOTOR}) in {time.perf_counter() - t:.1f} s")
-        cases = {"identify": [str(folder / "runs" / "*.csv")],
-                 "diagnose": [f"{folder}/train/*.csv,{folder}/holdout/*.csv"]}
-        print("| operation | engine | items | cluster start s | batch s | s/item | speed-up "
-              "| equals serial | 10⁵ items on this engine |")
-        print("|---|---|---|---|---|---|---|---|---|")
-        for operation, inputs in cases.items():
-            serial, _, base = _timed(operation, inputs, 0)
-            for workers in (0, 1, 2):
-                result, started, seconds = (serial, 0.0, base) if workers == 0 else _timed(
-                    operation, inputs, workers)
-                per_item = seconds / result.items
+        cases = {"identify": ([str(folder / "runs" / "*.csv")], (1, 10)),
+                 "diagnose": ([f"{folder}/train/*.csv,{folder}/holdout/*.csv"], (1,))}
+        print("| operation | engine | items per task | items | cluster start s | batch s "
+              "| wall per item | CPU per item | speed-up | equals serial | 10⁵ items, CPU |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        for operation, (inputs, chunks) in cases.items():
+            serial, _ = _timed(operation, inputs, 0)
+            runs = [(0, 1, serial, 0.0)] + [
+                (w, c, *_timed(operation, inputs, w, c)) for w in (1, 2) for c in chunks]
+            for workers, chunk, result, started in runs:
                 engine = "serial" if workers == 0 else f"LocalCluster {workers}"
-                print(f"| {operation} | {engine} | {result.items} ({result.errors} errors) | "
-                      f"{started:.1f} | {seconds:.2f} | {per_item * 1e3:.1f} ms | "
-                      f"{base / seconds:.2f} | {'yes' if _same(result, serial) else 'NO'} | "
-                      f"{per_item * FLEET / 3600:.2f} h |")
+                cpu = result.cpu_seconds / result.items
+                print(f"| {operation} | {engine} | {chunk if workers else ''} | {result.items} "
+                      f"({result.errors} errors) | {started:.1f} | {result.seconds:.2f} | "
+                      f"{result.seconds / result.items * 1e3:.1f} ms | {cpu * 1e3:.1f} ms | "
+                      f"{serial.seconds / result.seconds:.2f} | "
+                      f"{'yes' if _same(result, serial) else 'NO'} | "
+                      f"{cpu * FLEET / 3600:.2f} core-h |")
 
 
 def diagnosis(cases: int, seed: int = 1) -> None:

@@ -162,7 +162,9 @@ def test_the_command_writes_the_table_and_the_fleets(fleet: Path, tmp_path: Path
     out = tmp_path / "results.csv"
     code = main(["batch", "identify", str(fleet / "*" / "*.csv"), "-o", str(out),
                  "--workers", "0", "--json"])
-    summary = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert "batch: 8/8 items" in captured.err  # the progress bar, on stderr only
     assert code == 0 and (summary["items"], summary["errors"]) == (8, 1)
     assert summary["output"] == str(out) and out.exists()
     fleets = json.loads(Path(summary["fleets_output"]).read_text())
