@@ -22,8 +22,11 @@ from typing import Any, TextIO
 from stand.batch import OPERATIONS, BatchResult, run_batch
 from stand.batch.inputs import POOL_KEYS
 from stand.batch.table import check_output
-from stand.errors import InputError
+from stand.cli import options
 
+#: Most processes of the local cluster, and most items in one Dask task.
+MAX_WORKERS = 1024
+MAX_CHUNK = 10**6
 #: Least time between two redraws of the progress bar, s.
 PROGRESS_INTERVAL_S = 0.5
 PROGRESS_WIDTH = 30
@@ -56,21 +59,26 @@ class ProgressBar:
             self.tenth = tenth
 
 
+def results_file(text: str) -> str:
+    """A results table the command may write: .csv or .parquet, in a folder that takes files."""
+    return options.output_file(text, (".csv", ".parquet"))
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("operation", choices=list(OPERATIONS), help="what to do with each input")
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help="run file, glob, run:ID, query:KEY=VALUE[,...] (kind, state, "
                              "profile, origin, limit), or FIRST,SECOND for diagnose "
                              "(TRAIN,HOLDOUT) and torque-constant (NO_LOAD,LOADED)")
-    parser.add_argument("-o", "--output", required=True, metavar="RESULTS",
+    parser.add_argument("-o", "--output", required=True, metavar="RESULTS", type=results_file,
                         help="results table, .csv or .parquet (one row per input)")
     engine = parser.add_argument_group("engine")
-    engine.add_argument("--workers", type=int, default=2,
+    engine.add_argument("--workers", type=options.whole(0, MAX_WORKERS), default=2,
                         help="processes of the local Dask cluster (default 2); 0 runs every "
                              "item in this process without Dask")
     engine.add_argument("--scheduler", metavar="ADDRESS",
                         help="an existing Dask scheduler (tcp://HOST:8786) instead of a local cluster")
-    engine.add_argument("--chunk", type=int, default=1, metavar="N",
+    engine.add_argument("--chunk", type=options.whole(1, MAX_CHUNK), default=1, metavar="N",
                         help="items per Dask task (default 1; larger for items of a few ms)")
     engine.add_argument("--db", metavar="FILE",
                         help="the service's SQLite file for run:/query: inputs "
@@ -82,25 +90,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     ops = parser.add_argument_group("operation options (as the single commands')")
     ops.add_argument("--method", help="identify/torque-constant: default, paper; "
                                       "step-identify: trf, lm, gd, pattern")
-    ops.add_argument("--no-load-current", type=float, dest="no_load_current_A", metavar="A",
+    ops.add_argument("--no-load-current", type=options.non_negative, dest="no_load_current_A",
+                     metavar="A",
                      help="identify: no-load current subtracted, A")
-    ops.add_argument("--half-width", type=int, help="identify/torque-constant: kernel half width")
-    ops.add_argument("--added-inertia", type=float, metavar="KGM2",
+    ops.add_argument("--half-width", type=options.whole(1, 10**5),
+                     help="identify/torque-constant: kernel half width")
+    ops.add_argument("--added-inertia", type=options.positive, metavar="KGM2",
                      help="torque-constant: inertia of the added disk, kg·m²")
     ops.add_argument("--no-compensation", dest="compensate", action="store_const", const=False,
                      help="torque-constant: do not subtract the no-load current")
-    ops.add_argument("--ratio", type=float, metavar="N", help="efficiency: reduction ratio")
-    ops.add_argument("--k-in", type=float, metavar="NM_PER_A", help="efficiency: input Kt, N·m/A")
-    ops.add_argument("--k-out", type=float, metavar="NM_PER_A", help="efficiency: output Kt, N·m/A")
+    ops.add_argument("--ratio", type=options.positive, metavar="N", help="efficiency: reduction ratio")
+    ops.add_argument("--k-in", type=options.positive, metavar="NM_PER_A", help="efficiency: input Kt, N·m/A")
+    ops.add_argument("--k-out", type=options.positive, metavar="NM_PER_A",
+                     help="efficiency: output Kt, N·m/A")
     ops.add_argument("--known", action="append", metavar="NAME=VALUE",
                      help="step-identify: a known parameter, repeatable")
     ops.add_argument("--hold", help="step-identify: preceding or following")
     ops.add_argument("--speed-only", dest="use_current", action="store_const", const=False,
                      help="step-identify: ignore current_A")
-    ops.add_argument("--kt", type=float, help="diagnose: torque constant, N·m/A")
-    ops.add_argument("--horizon", type=float, dest="horizon_s", metavar="S",
+    ops.add_argument("--kt", type=options.positive, help="diagnose: torque constant, N·m/A")
+    ops.add_argument("--horizon", type=options.positive, dest="horizon_s", metavar="S",
                      help="diagnose: free-run time between re-anchorings, s")
-    ops.add_argument("--max-effects", type=int, help="diagnose: most effects in the verdict")
+    ops.add_argument("--max-effects", type=options.whole(1, 8), help="diagnose: most effects in the verdict")
     ops.add_argument("--spring", action="store_const", const=True,
                      help="diagnose: keep the spring term C·θ")
 
@@ -143,8 +154,6 @@ def _quiet_dask(record: logging.LogRecord) -> bool:
 
 
 def run(args: argparse.Namespace) -> BatchResult:
-    if args.workers < 0:
-        raise InputError(f"--workers must be >= 0, got {args.workers}")
     check_output(args.output)
     # The command line logs at INFO; Dask's scheduler and nannies (whose loggers carry
     # levels of their own) would fill stderr with start-up and shutdown chatter. Their

@@ -174,3 +174,7 @@ def test_the_command_writes_the_table_and_the_fleets(fleet: Path, tmp_path: Path
     assert main(["batch", "efficiency", str(fleet / "*" / "*.csv"), "-o", str(out),
                  "--workers", "0"]) == 2
     assert "option ratio is required" in capsys.readouterr().err
+    for bad, said in ((["--workers", "-1"], "--workers"), (["--chunk", "0"], "--chunk"),
+                      (["-o", str(tmp_path / "r.xlsx")], ".csv, .parquet")):
+        args = ["batch", "identify", str(fleet / "*" / "*.csv"), "-o", str(out), *bad]
+        assert main(args) == 2 and said in capsys.readouterr().err
