@@ -46,7 +46,7 @@ class BatchJob:
     message : str
         Why the batch failed, if it did.
     result_id : str or None
-        The stored result (``GET /results/{id}``) once done.
+        The id of the stored result once done.
     summary : dict or None
         The batch's summary (:meth:`stand.batch.BatchResult.to_json`) once done.
     """
@@ -111,7 +111,8 @@ class BatchJobs:
         with self._lock:
             job = self._jobs.get(job_id)
         if job is None:
-            raise NotFoundError(f"no batch {job_id!r}; POST /batch starts one")
+            raise NotFoundError(f"no batch {job_id!r}: batches are known from their start until the "
+                                "service stops")
         return job
 
     def _work(self, job: BatchJob, items: list[Any], options: dict[str, Any], workers: int) -> None:
