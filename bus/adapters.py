@@ -26,8 +26,10 @@ DEFAULT_CHANNEL = "motorstand"
 FUNCTION_MASK = 0x780
 EXACT_MASK = 0x7FF
 #: What a master must hear (CiA 301 predefined connection set, any node id): EMCY (and a
-#: SYNC), TPDO1-4, SDO responses, heartbeats. 11-bit frames only.
+#: SYNC), TPDO1-4, SDO responses, heartbeats; and NMT commands (exact id), for another
+#: master's. 11-bit frames only.
 MASTER_RECEIVES = (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x700)
+MASTER_RECEIVES_EXACT = (0x000,)
 #: What a drive must hear: NMT and SYNC (exact ids), RPDO1-4 and SDO requests (any node id).
 DRIVE_RECEIVES_EXACT = (0x000, 0x080)
 DRIVE_RECEIVES = (0x200, 0x300, 0x400, 0x500, 0x600)
@@ -41,7 +43,9 @@ def receive_filters(role: str) -> list[dict[str, Any]]:
     interfaces filter in python-can.
     """
     if role == "master":
-        return [{"can_id": base, "can_mask": FUNCTION_MASK, "extended": False} for base in MASTER_RECEIVES]
+        return ([{"can_id": cob, "can_mask": EXACT_MASK, "extended": False} for cob in MASTER_RECEIVES_EXACT]
+                + [{"can_id": base, "can_mask": FUNCTION_MASK, "extended": False}
+                   for base in MASTER_RECEIVES])
     if role == "drive":
         return ([{"can_id": cob, "can_mask": EXACT_MASK, "extended": False} for cob in DRIVE_RECEIVES_EXACT]
                 + [{"can_id": base, "can_mask": FUNCTION_MASK, "extended": False} for base in DRIVE_RECEIVES])

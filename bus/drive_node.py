@@ -24,6 +24,7 @@ from canopen.sdo import SdoAbortedError
 
 from bus import cia402
 from bus.adapters import has_kernel_timers
+from bus.cia301 import EMCY_BASE, EMCY_ERROR_RESET
 from bus.eds import Scaling, load_od
 from bus.pdo import COB_ID_INVALID, Layout
 from stand.physics.plant import Measurement
@@ -277,6 +278,9 @@ class SimDriveNode:
         after = self.sm.on_controlword(word)
         if after is before:
             return
+        if before is cia402.State.FAULT:  # fault reset: the error is gone (CiA 301 §7.2.7)
+            self.values[cia402.ERROR_CODE] = EMCY_ERROR_RESET
+            self._emcy(EMCY_ERROR_RESET, 0x00)
         if after is cia402.State.QUICK_STOP_ACTIVE:
             self.quick_stop_at = (time.monotonic(), self.syncs)
             self.plant().command("speed", 0.0, self.port)
@@ -292,8 +296,12 @@ class SimDriveNode:
         self.sm.fault()
         self.values[cia402.ERROR_CODE] = code
         self.plant().command("current", 0.0, self.port)
-        self.network.send_message(0x80 + self.id, struct.pack("<HB5s", code, register, b""))
+        self._emcy(code, register)
         log.warning("node %d: fault 0x%04X", self.id, code)
+
+    def _emcy(self, code: int, register: int) -> None:
+        """Send EMCY ``code`` with error register ``register`` (0x1001)."""
+        self.network.send_message(EMCY_BASE + self.id, struct.pack("<HB5s", code, register, b""))
 
     # -- PDO ---------------------------------------------------------------------------
     def _layouts(self, comm: int, mapping: int) -> list[tuple[int, Layout]]:

@@ -11,6 +11,7 @@ every drive at once when one fails.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -23,19 +24,30 @@ import numpy as np
 
 from bus import cia402
 from bus.adapters import BusConfig, connect_network
+from bus.cia301 import (
+    COMMUNICATION_CYCLE_PERIOD,
+    NMT_COB_ID,
+    NMT_ENTER_PRE_OPERATIONAL,
+    NMT_RESET_NODE,
+    NMT_START,
+    PRODUCER_HEARTBEAT_TIME,
+    SYNC_COB_ID,
+    SYNCHRONOUS_COUNTER_OVERFLOW,
+    SYNCHRONOUS_WINDOW_LENGTH,
+)
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
 from bus.heartbeat import HEARTBEAT_CONSUMER_FACTOR, Supervisor
-from bus.sampler import Sampler, Samples
+from bus.sampler import MissingPdos, Sampler, Samples
 from bus.sync import (
-    SYNC_COB_ID,
     SYNC_COUNTER_OVERFLOW,
     SYNC_WINDOW_FRACTION,
     RealtimeClock,
     SyncCounter,
+    SyncWatch,
     check_time_mode,
 )
 from bus.trace import Trace
-from stand.errors import BusError, BusTimeout, InputError
+from stand.errors import BusError, BusTimeout, InputError, RunAborted, StandError
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +63,9 @@ PDO_TIMEOUT_S = 2.0
 POLL_S = 0.01
 #: Stand time the drives spend in quick stop after a run before they are disabled, s.
 STOP_RAMP_S = 0.1
-NMT_START, NMT_PRE_OPERATIONAL, NMT_RESET_NODE = 0x01, 0x80, 0x81
+#: A run aborts when a drive's TPDOs are missing for this many SYNCs in a row (lockstep:
+#: each window waited ``pdo_timeout_s``; real time: at least ``pdo_timeout_s`` of SYNCs).
+MISSING_PDO_SYNCS = 3
 #: Interfaces that hand the sender its own frames back with their bus stamp when asked
 #: (``receive_own_messages``); the master takes each SYNC's time on the bus from the echo.
 ECHO_INTERFACES = ("socketcan", "virtual")
@@ -121,6 +135,7 @@ class Master:
         #: One counter for every SYNC the master sends (0x1019 is set on the drives).
         self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self._window_written_us = 0
+        self._sync_watch: SyncWatch | None = None
         self.running = False
         self.period_s = 0.0
         self.window = 0
@@ -160,19 +175,19 @@ class Master:
             self.supervisor.watch(drive.id)
             self._counters[drive.id] = {"lost": 0, "duplicates": 0, "late": 0}
         for drive in self.drives:
-            self.network.send_message(0, bytes([NMT_RESET_NODE, drive.id]))
+            self.network.send_message(NMT_COB_ID, bytes([NMT_RESET_NODE, drive.id]))
         for drive in self.drives:
             if not self.supervisor.booted[drive.id].wait(self.boot_timeout_s):
                 raise BusTimeout(f"node {drive.id}: no boot-up message within {self.boot_timeout_s} s "
                                  "after NMT reset node; is the drive powered, on this bus, at this id?")
         for n, drive in enumerate(self.drives):
-            drive.write(0x1017, 0, max(1, int(round(self.heartbeat_period_s * 1000))))
-            if drive.has(0x1019):
-                drive.write(0x1019, 0, SYNC_COUNTER_OVERFLOW)
-            if drive.has(0x1006):
-                drive.write(0x1006, 0, int(round(period_s * 1e6)))
-            if drive.has(0x1007):
-                drive.write(0x1007, 0, window_us)
+            drive.write(PRODUCER_HEARTBEAT_TIME, 0, max(1, int(round(self.heartbeat_period_s * 1000))))
+            if drive.has(SYNCHRONOUS_COUNTER_OVERFLOW):
+                drive.write(SYNCHRONOUS_COUNTER_OVERFLOW, 0, SYNC_COUNTER_OVERFLOW)
+            if drive.has(COMMUNICATION_CYCLE_PERIOD):
+                drive.write(COMMUNICATION_CYCLE_PERIOD, 0, int(round(period_s * 1e6)))
+            if drive.has(SYNCHRONOUS_WINDOW_LENGTH):
+                drive.write(SYNCHRONOUS_WINDOW_LENGTH, 0, window_us)
             if n == 0 and added_inertia_kgm2 is not None:
                 if drive.has(cia402.ADDED_INERTIA):
                     drive.write(cia402.ADDED_INERTIA, 0, float(added_inertia_kgm2))
@@ -183,7 +198,7 @@ class Master:
             drive.configure_pdos()
         self._window_written_us = window_us
         for drive in self.drives:
-            self.network.send_message(0, bytes([NMT_START, drive.id]))
+            self.network.send_message(NMT_COB_ID, bytes([NMT_START, drive.id]))
         for drive in self.drives:
             drive.enable()
 
@@ -196,8 +211,8 @@ class Master:
         window_us = self._window_us(time_mode, self.period_s)
         if window_us != self._window_written_us:
             for drive in self.drives:
-                if drive.has(0x1007):
-                    drive.write(0x1007, 0, window_us)
+                if drive.has(SYNCHRONOUS_WINDOW_LENGTH):
+                    drive.write(SYNCHRONOUS_WINDOW_LENGTH, 0, window_us)
             self._window_written_us = window_us
 
     # -- supervision -----------------------------------------------------------------------
@@ -205,7 +220,10 @@ class Master:
         return self.supervisor.age_s(node_id)
 
     def _check_nodes(self) -> BusError | None:
-        return self.supervisor.check([d.id for d in self.drives], self.heartbeat_period_s)
+        """Heartbeats, EMCY, NMT states and (during a run) foreign SYNCs of the drives."""
+        error = self.supervisor.check([d.id for d in self.drives], self.heartbeat_period_s)
+        watch = self._sync_watch
+        return error if error is not None or watch is None else watch.error()
 
     def quick_stop_all(self) -> None:
         """Send CiA 402 quick stop to every drive at once (RPDO frames, back to back).
@@ -241,9 +259,12 @@ class Master:
         """Send ``targets`` (drives × samples, SI units) one column per SYNC; record the TPDOs.
 
         The sample of window k is measured at SYNC k, before target k acts (as in
-        :func:`stand.physics.simulate.simulate_motor`). A heartbeat loss or an EMCY quick-stops
-        every drive and ends the run early; so does ``stop``. Either way the samples so far are
-        returned, with ``Samples.aborted`` saying why.
+        :func:`stand.physics.simulate.simulate_motor`). The run is supervised: a heartbeat
+        loss, an EMCY, a drive leaving OPERATIONAL, TPDOs of a drive missing for
+        :data:`MISSING_PDO_SYNCS` SYNCs in a row, or a SYNC another producer sent quick-stops
+        every drive and ends the run early; so do ``stop`` and Ctrl-C. Either way the samples
+        so far are returned, with ``Samples.aborted`` saying why (and ``meta["error"]`` the
+        error), and the trace ends with the quick-stop frames.
         """
         check_time_mode(time_mode)
         targets = np.atleast_2d(np.asarray(targets, dtype=float))
@@ -272,64 +293,85 @@ class Master:
 
         if echo:
             self.network.subscribe(SYNC_COB_ID, on_sync_echo)
+        counter = self._sync_counter
+        watch = self._sync_watch = SyncWatch(self.sync_echo, counter.upcoming(), counter.overflow)
+        self.network.subscribe(SYNC_COB_ID, watch.on_sync)
+        self.supervisor.expect_operational([d.id for d in self.drives])
         frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
                    for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
                   if d.rpdo is not None]
         self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
         clock = RealtimeClock(self.period_s, window_s) if time_mode == "realtime" else None
-        counter = self._sync_counter
+        missing = MissingPdos([d.id for d in self.drives], MISSING_PDO_SYNCS if clock is None else
+                              max(MISSING_PDO_SYNCS, math.ceil(self.pdo_timeout_s / self.period_s)))
         send = self.network.send_message
-        aborted: str | None = None
-        error: BusError | None = None
+        error: StandError | None = None
         done = 0
         try:
-            for k in range(n):
-                self.window = k
-                error = self._check_nodes()
-                if error is not None or self._quick_stop.is_set() or (stop is not None and stop.is_set()):
-                    break
-                wall = clock.wait() if clock is not None else time.monotonic()
-                for per_drive in frames:
-                    send(*per_drive[k])
-                value, data = counter.next()
-                sampler.open(k, wall, value)
-                send(SYNC_COB_ID, data)
-                if not echo:
-                    sampler.sent(time.time())
-                if clock is None:
-                    error = self._await_window(sampler, stop)
-                    if error is not None:
-                        done = k + 1
+            try:
+                for k in range(n):
+                    self.window = k
+                    error = self._check_nodes()
+                    if error is not None or self._quick_stop.is_set() or (stop is not None and stop.is_set()):
                         break
-                done = k + 1
-                if on_chunk is not None and done % chunk_samples == 0:
-                    on_chunk(sampler.result(done), done - chunk_samples, done)
-                if progress is not None:
-                    progress(done, n)
-            if clock is not None:  # the TPDOs of the last window
-                sampler.complete.wait(self.pdo_timeout_s)
+                    wall = clock.wait() if clock is not None else time.monotonic()
+                    if clock is not None and k > 0:  # a period after SYNC k-1: its answers are in
+                        error = missing.check(k - 1, sampler.missing(k - 1))
+                        if error is not None:
+                            break
+                    for per_drive in frames:
+                        send(*per_drive[k])
+                    value, data = counter.next()
+                    sampler.open(k, wall, value)
+                    watch.sent()
+                    send(SYNC_COB_ID, data)
+                    if not echo:
+                        sampler.sent(time.time())
+                    done = k + 1
+                    if clock is None:
+                        error = self._await_window(sampler, stop)
+                        if error is None:
+                            error = missing.check(k, [] if sampler.complete.is_set()
+                                                  else sampler.missing(k))
+                        if error is not None:
+                            break
+                    if on_chunk is not None and done % chunk_samples == 0:
+                        on_chunk(sampler.result(done), done - chunk_samples, done)
+                    if progress is not None:
+                        progress(done, n)
+                if clock is not None and error is None:  # the TPDOs of the last window
+                    sampler.complete.wait(self.pdo_timeout_s)
+            except KeyboardInterrupt:
+                error = RunAborted("interrupted (Ctrl-C): drives quick-stopped")
+            finally:
+                sampler.close()
+                self.running = False
+                self.supervisor.release()
+                self._sync_watch = None
+                for cob in tpdos:
+                    self.network.unsubscribe(cob, sampler.on_tpdo)
+                self.network.unsubscribe(SYNC_COB_ID, watch.on_sync)
+                if echo:
+                    self.network.unsubscribe(SYNC_COB_ID, on_sync_echo)
+            # The quick stop goes into the trace: it ends with the stop frames.
+            aborted: str | None = None
+            if error is not None:
+                self.quick_stop_all()
+                aborted = str(error)
+            elif self._quick_stop.is_set():
+                aborted = "quick stop requested"
+            elif stop is not None and stop.is_set():
+                self.quick_stop_all()
+                aborted = "stop requested"
         finally:
-            sampler.close()
-            self.running = False
-            for cob in tpdos:
-                self.network.unsubscribe(cob, sampler.on_tpdo)
-            if echo:
-                self.network.unsubscribe(SYNC_COB_ID, on_sync_echo)
             if trace is not None:
                 self.network.trace = None
                 assert self.network.notifier is not None
                 self.network.notifier.remove_listener(trace)
                 trace.stop()
-        if error is not None:
-            self.quick_stop_all()
-            aborted = str(error)
-        elif self._quick_stop.is_set():
-            aborted = "quick stop requested"
-        elif stop is not None and stop.is_set():
-            self.quick_stop_all()
-            aborted = "stop requested"
         samples = sampler.result(done, aborted)
         samples.meta["error"] = error
+        samples.meta["foreign_syncs"] = watch.foreign
         samples.meta["trace_frames"] = trace.frames if trace is not None else 0
         for d, ds in zip(self.drives, samples.drives, strict=True):
             self._counters[d.id] = {"lost": ds.lost, "duplicates": ds.duplicates, "late": ds.late}
@@ -338,6 +380,8 @@ class Master:
         return samples
 
     def _await_window(self, sampler: Sampler, stop: threading.Event | None) -> BusError | None:
+        """Wait for the open window's TPDOs, supervising; return an error or None (all came,
+        a stop was asked, or the PDO timeout passed: the caller counts what is missing)."""
         deadline = time.monotonic() + self.pdo_timeout_s
         while not sampler.complete.wait(min(POLL_S, max(0.0, deadline - time.monotonic()))):
             error = self._check_nodes()
@@ -359,7 +403,7 @@ class Master:
                 drive.disable()
             except BusError as exc:
                 log.warning("%s", exc)
-            self.network.send_message(0, bytes([NMT_PRE_OPERATIONAL, drive.id]))
+            self.network.send_message(NMT_COB_ID, bytes([NMT_ENTER_PRE_OPERATIONAL, drive.id]))
 
     def status(self) -> dict[str, Any]:
         """Nodes, NMT states, heartbeat ages, EMCY and PDO error counters (JSON data)."""

@@ -22,6 +22,7 @@ import numpy as np
 from bus import cia402
 from bus.eds import Scaling
 from bus.pdo import Layout
+from stand.errors import BusTimeout
 
 #: Process data objects the sampler understands, and the field each fills.
 FIELDS = {cia402.POSITION_ACTUAL: "position_rad", cia402.CURRENT_ACTUAL: "current_A",
@@ -83,8 +84,9 @@ class Samples:
 
     @property
     def complete(self) -> bool:
-        """True when every window of every drive got all its TPDOs and the run ended normally."""
-        return self.aborted is None and all(d.lost == 0 for d in self.drives)
+        """True when the run ended normally and every window of every drive got each of its
+        TPDOs once, in time: no TPDO lost, duplicated or late."""
+        return self.aborted is None and all(d.lost == d.duplicates == d.late == 0 for d in self.drives)
 
     def time_s(self) -> np.ndarray:
         return np.arange(self.count) * self.period_s
@@ -171,6 +173,11 @@ class Sampler:
                 for args in parked:
                     self._take(*args)
 
+    def missing(self, k: int) -> list[int]:
+        """The drives (numbers) that lack a TPDO of window ``k``."""
+        with self._lock:
+            return [n for n, received in enumerate(self.received) if not received[:, k].all()]
+
     def close(self) -> None:
         """No window is open any more; TPDOs arriving now are late."""
         with self._lock:
@@ -243,6 +250,33 @@ class Sampler:
                                        duplicates=self.duplicates[n], late=self.late[n]))
         return Samples(self.period_s, count, self.wall_s[:count].copy(),
                        self.sync_counter[:count].copy(), drives, aborted)
+
+
+class MissingPdos:
+    """Counts, per drive, the SYNC windows in a row that lacked one of its TPDOs.
+
+    Parameters
+    ----------
+    node_ids : sequence of int
+        The drives, in drive-number order.
+    limit : int
+        Windows in a row after which the drive is reported.
+    """
+
+    def __init__(self, node_ids: Sequence[int], limit: int) -> None:
+        self.node_ids = list(node_ids)
+        self.limit = limit
+        self.in_a_row = [0] * len(self.node_ids)
+
+    def check(self, k: int, lacking: Sequence[int]) -> BusTimeout | None:
+        """Window ``k`` lacked TPDOs of the drives ``lacking``; an error once one reaches the limit."""
+        for n, node_id in enumerate(self.node_ids):
+            self.in_a_row[n] = self.in_a_row[n] + 1 if n in lacking else 0
+            if self.in_a_row[n] >= self.limit:
+                return BusTimeout(f"node {node_id}: TPDOs missing for {self.limit} SYNCs in a row "
+                                  f"(windows {k - self.limit + 1}-{k}); is it still OPERATIONAL? "
+                                  "every drive was quick-stopped")
+        return None
 
 
 def _unwrap_int32(values: np.ndarray) -> np.ndarray:

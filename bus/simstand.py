@@ -5,7 +5,9 @@ profile gives two nodes (input and output motor) sharing one
 :class:`~stand.physics.reducer.ReducerPlant`, which advances once per SYNC. On SYNC every
 node samples (and sends its TPDOs when OPERATIONAL), then applies its latest target, then
 the plant advances one communication cycle period (0x1006, written by the master), so the
-drives keep lockstep with the SYNCs. Run it in-process or in its own process::
+drives keep lockstep with the SYNCs. With a SYNC counter (0x1019 set), a SYNC whose
+counter does not follow the last one came from another producer and moves nothing: the
+stand's time is the master's SYNCs only. Run it in-process or in its own process::
 
     python -m bus.simstand --interface socketcan --channel vcan0 --profile crouzet_82800502
 """
@@ -24,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from bus.adapters import BusConfig, connect_network
+from bus.cia301 import COMMUNICATION_CYCLE_PERIOD, SYNC_COB_ID, SYNCHRONOUS_COUNTER_OVERFLOW
 from bus.cia402 import ADDED_INERTIA
 from bus.drive_node import Plant, SimDriveNode
 from bus.eds import FINE_COUNTS_PER_REV, Scaling
@@ -35,7 +38,6 @@ from stand.profiles import MotorProfile, StandProfile, load_motor, load_stand, r
 
 log = logging.getLogger(__name__)
 
-SYNC_COB_ID = 0x080
 #: The main thread of ``python -m bus.simstand`` looks for SIGTERM/SIGINT this often, s.
 SIGNAL_POLL_S = 0.2
 #: Longest sleep of the heartbeat thread while no node produces heartbeats, s.
@@ -98,6 +100,9 @@ class SimStand:
         for node, motor in zip(self.nodes, self.motors, strict=True):
             node.following_window_rad_s = FOLLOWING_WINDOW_FRACTION * motor.limits.speed_rad_s
         self.syncs = 0
+        #: SYNCs ignored as another producer's (out of the counter sequence).
+        self.foreign_syncs = 0
+        self._last_counter: int | None = None
         self.network.subscribe(SYNC_COB_ID, self._on_sync)
         for node in self.nodes:
             node.boot()
@@ -135,6 +140,22 @@ class SimStand:
     def _on_reset(self, node: SimDriveNode) -> None:
         if node is self.nodes[0]:
             self.plant = self._build_plant()
+            self._last_counter = None
+
+    def _ours(self, data: bytearray) -> bool:
+        """True unless the SYNC breaks the counter sequence of 0x1019 (another producer's)."""
+        overflow = self.nodes[0].node.get_data(SYNCHRONOUS_COUNTER_OVERFLOW, 0)[0]
+        if not overflow:
+            return True  # no counter: producers cannot be told apart
+        if len(data) != 1 or (self._last_counter is not None
+                              and data[0] != self._last_counter % overflow + 1):
+            self.foreign_syncs += 1
+            if self.foreign_syncs == 1:
+                log.warning("simulated stand: SYNC %s out of sequence after %s; ignored",
+                            bytes(data).hex() or "without counter", self._last_counter)
+            return False
+        self._last_counter = data[0]
+        return True
 
     def _on_write(self, node: SimDriveNode, index: int, value: Any) -> None:
         if index == ADDED_INERTIA and node is self.nodes[0]:
@@ -143,7 +164,9 @@ class SimStand:
             log.info("simulated stand: added inertia %.4g kg·m², plant rebuilt", value)
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        cycle_us = struct.unpack("<I", self.nodes[0].node.get_data(0x1006, 0))[0]
+        if not self._ours(data):
+            return
+        cycle_us = struct.unpack("<I", self.nodes[0].node.get_data(COMMUNICATION_CYCLE_PERIOD, 0))[0]
         dt_s = cycle_us * 1e-6 if cycle_us else self.period_s
         stamp: float | None = timestamp
         if abs(time.time() - timestamp) > SAME_EPOCH_S:

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stand.errors import InputError
+from bus.cia301 import SYNC_COB_ID
+from stand.errors import ForeignSync, InputError
 
-SYNC_COB_ID = 0x080
+__all__ = ["SYNC_COB_ID", "SyncCounter", "SyncWatch", "RealtimeClock", "Jitter", "check_time_mode"]
 #: SYNC counter overflow value written to 0x1019 (1..240; 0 = no counter).
 SYNC_COUNTER_OVERFLOW = 240
 #: Below this much time to a deadline the clock yields instead of sleeping, s.
@@ -43,12 +44,61 @@ class SyncCounter:
         self.overflow = overflow
         self.value = 0
 
+    def upcoming(self) -> int:
+        """The counter value the next SYNC will carry (0 when the counter is off)."""
+        return self.value % self.overflow + 1 if self.overflow else 0
+
     def next(self) -> tuple[int, bytes]:
         """The next counter value and the SYNC frame's data."""
         if not self.overflow:
             return 0, b""
         self.value = self.value % self.overflow + 1
         return self.value, bytes([self.value])
+
+
+class SyncWatch:
+    """Tells the master's own SYNCs from another producer's (CiA 301 allows one producer).
+
+    ``echo``: the master hears its own SYNCs (they come back in the order sent, carrying the
+    counter sequence from ``first``); without echo, every SYNC heard is another producer's.
+    A SYNC out of the sequence, of another length, or beyond the count sent is foreign.
+    Subscribe :meth:`on_sync` to 0x080; :meth:`sent` before each SYNC leaves.
+    """
+
+    def __init__(self, echo: bool, first: int, overflow: int = SYNC_COUNTER_OVERFLOW) -> None:
+        self.echo = echo
+        self.overflow = overflow
+        self.expected = first
+        self.sent_count = 0
+        self.heard = 0
+        self.foreign = 0
+        self.first_foreign: bytes | None = None
+
+    def sent(self) -> None:
+        self.sent_count += 1
+
+    def on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """Subscriber of 0x080 (bus reader thread)."""
+        ours = self.echo and self.heard < self.sent_count and (
+            bytes(data[:1]) == (bytes([self.expected]) if self.overflow else b"")
+            and len(data) == (1 if self.overflow else 0))
+        if ours:
+            self.heard += 1
+            if self.overflow:
+                self.expected = self.expected % self.overflow + 1
+            return
+        self.foreign += 1
+        if self.first_foreign is None:
+            self.first_foreign = bytes(data)
+
+    def error(self) -> ForeignSync | None:
+        """The first foreign SYNC as an error, or None."""
+        if not self.foreign:
+            return None
+        data = self.first_foreign.hex(" ") if self.first_foreign else "no data"
+        return ForeignSync(f"{self.foreign} SYNC frame(s) on 0x080 that this master did not send "
+                           f"(first: {data}); another SYNC producer is on the bus; every drive "
+                           "was quick-stopped")
 
 
 class RealtimeClock:

@@ -17,7 +17,10 @@ catch either::
     ├── BusError                         CAN / CANopen trouble
     │   ├── BusTimeout (TimeoutError)    an SDO, boot-up or PDO that did not come
     │   ├── DriveFault                   a drive that reported a fault (EMCY)
-    │   └── HeartbeatLost                a node whose heartbeat stopped
+    │   ├── HeartbeatLost                a node whose heartbeat stopped
+    │   ├── NodeNotOperational           a drive that left NMT OPERATIONAL mid-run
+    │   ├── ForeignSync                  SYNC frames another producer sent
+    │   └── DeviceMismatch               a device that is not the one its EDS describes
     └── RunAborted                       a run stopped before its end (samples kept)
 
 Messages say what was found, what was expected, and what to do about it.
@@ -80,6 +83,18 @@ class DriveFault(BusError):
 
 class HeartbeatLost(BusError):
     """A node whose heartbeat stopped arriving within its consumer time."""
+
+
+class NodeNotOperational(BusError):
+    """A drive that left NMT OPERATIONAL during a run (its heartbeat or a foreign NMT command)."""
+
+
+class ForeignSync(BusError):
+    """SYNC frames on the bus that the master did not send (a second SYNC producer)."""
+
+
+class DeviceMismatch(BusError):
+    """A device whose device type (0x1000) or identity (0x1018) is not what its EDS says."""
 
 
 class RunAborted(StandError):
