@@ -1,8 +1,10 @@
 """The master's view of one CiA 402 drive: SDO access, PDO mapping, enabling.
 
-Works with any CiA 402 drive whose EDS is given: the PDO layouts are written over SDO
-(CiA 301 §7.2.2: invalidate the PDO, clear the mapping, write the entries, set the count,
-set the transmission type, make it valid again).
+Works with any CiA 402 drive whose EDS (or DCF) is given: :meth:`Drive.check_device` first
+reads the device type and identity and refuses a device its EDS does not describe; then
+the PDO layouts are written over SDO (CiA 301 §7.2.2: invalidate the PDO, clear the
+mapping, write the entries, set the count, set the transmission type, make it valid
+again). Objects only the simulated drive has are used only on a simulated drive.
 """
 
 from __future__ import annotations
@@ -17,17 +19,29 @@ from typing import Any
 import canopen
 
 from bus import cia402
-from bus.eds import Scaling, load_od
+from bus.cia301 import (
+    DEVICE_TYPE,
+    IDENTITY,
+    PRODUCT_CODE,
+    RPDO_COMMUNICATION,
+    RPDO_MAPPING,
+    TPDO_COMMUNICATION,
+    TPDO_MAPPING,
+    VENDOR_ID,
+)
+from bus.device import CIA402_PROFILE, DeviceIdentity, eds_identity, is_simulated
+from bus.eds import DEFAULT_EDS, Scaling, load_od
 from bus.pdo import COB_ID_INVALID, SYNCHRONOUS, Layout, entries_for
-from stand.errors import BusError, BusTimeout, DriveFault, InputError
+from stand.errors import BusError, BusTimeout, DeviceMismatch, DriveFault, InputError
 
 #: Time an SDO answer may take, s.
 SDO_TIMEOUT_S = 0.3
 #: Time a drive may take to reach a CiA 402 state after a controlword, s.
 STATE_TIMEOUT_S = 0.5
 STATE_POLL_S = 0.005
-TPDO_COMM, TPDO_MAP, RPDO_COMM, RPDO_MAP = 0x1800, 0x1A00, 0x1400, 0x1600
 DRIVE_MODES = tuple(cia402.MODES)
+#: Short names of the PDO parameter bases (bus.tracereader reads them from here).
+TPDO_COMM, TPDO_MAP = TPDO_COMMUNICATION, TPDO_MAPPING
 
 
 @dataclass(frozen=True)
@@ -45,7 +59,7 @@ class DriveConfig:
     eds : path or None
         Its EDS (default: the simulated drive's).
     velocity : bool
-        Also map velocity actual (and voltage actual when the EDS has 0x2001) into TPDO2.
+        Also map velocity actual (and, on a simulated drive, voltage actual 0x2001) into TPDO2.
     """
 
     node_id: int
@@ -59,12 +73,12 @@ class DriveConfig:
             raise InputError(f"drive mode must be one of {', '.join(DRIVE_MODES)}, not {self.mode!r}")
 
 
-def tpdo_objects(od: canopen.ObjectDictionary) -> tuple[list[int], list[int]]:
+def tpdo_objects(od: canopen.ObjectDictionary, simulated: bool = True) -> tuple[list[int], list[int]]:
     """The objects the master maps into TPDO1 and TPDO2 of a drive with object dictionary
     ``od``: position and current actual; velocity actual (and voltage actual when the
-    drive has 0x2001)."""
-    second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if cia402.VOLTAGE_ACTUAL in od
-                                         else [])
+    drive is the simulated one and ``od`` has 0x2001, an object only the simulation has)."""
+    voltage = simulated and cia402.VOLTAGE_ACTUAL in od
+    second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if voltage else [])
     return [cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL], second
 
 
@@ -81,6 +95,9 @@ class Drive:
         self.node.sdo.MAX_RETRIES = 1  # canopen counts the first try: one try, no retry
         network.add_node(self.node)
         self.network = network
+        #: What the device said it is (:meth:`check_device`), and whether it is simulated.
+        self.identity: DeviceIdentity | None = None
+        self.simulated = False
         self.rpdo_cob_id = 0
         self.rpdo: Layout | None = None
         self.tpdos: list[tuple[int, Layout]] = []
@@ -120,7 +137,40 @@ class Drive:
             var.raw = value
 
     def has(self, index: int) -> bool:
+        """True when the drive's EDS has object ``index``."""
         return index in self.od
+
+    def check_device(self) -> DeviceIdentity:
+        """Read 0x1000 and 0x1018 and compare them with the EDS; writes nothing.
+
+        Raises
+        ------
+        DeviceMismatch
+            The device is no CiA 402 drive, or its vendor id and product code are not the
+            EDS's.
+        InputError
+            Voltage mode (the simulation's manufacturer mode) asked of a real drive.
+        """
+        found = DeviceIdentity(int(self.read(DEVICE_TYPE)), int(self.read(IDENTITY, VENDOR_ID)),
+                               int(self.read(IDENTITY, PRODUCT_CODE)))
+        eds = self.config.eds or DEFAULT_EDS
+        if found.profile != CIA402_PROFILE:
+            raise DeviceMismatch(f"node {self.id}: {found.describe()}, not a CiA 402 drive; "
+                                 "nothing was written to it; is the node id right?")
+        expected = eds_identity(self.od)
+        if expected is not None and (found.vendor_id, found.product_code) != (
+                expected.vendor_id, expected.product_code):
+            raise DeviceMismatch(
+                f"node {self.id}: the device is vendor id 0x{found.vendor_id:08X}, product code "
+                f"0x{found.product_code:08X}, but {eds} describes vendor id 0x{expected.vendor_id:08X}, "
+                f"product code 0x{expected.product_code:08X}; nothing was written to it; give the "
+                "drive's own EDS or DCF (stand run --eds FILE)")
+        self.identity, self.simulated = found, is_simulated(found)
+        if self.config.mode == "voltage" and not self.simulated:
+            raise InputError(f"node {self.id}: voltage mode is the simulated drive's manufacturer "
+                             f"mode (target 0x{cia402.TARGET_OBJECT['voltage'][0]:04X}); this is a "
+                             f"real drive ({found.describe()}): run it in speed or current mode")
+        return found
 
     # -- PDO mapping -------------------------------------------------------------------
     def _map(self, comm: int, mapping: int, indices: list[int]) -> tuple[int, Layout]:
@@ -143,14 +193,15 @@ class Drive:
     def configure_pdos(self) -> None:
         """Map RPDO1 (controlword + target) and TPDO1/TPDO2 (actual values) over SDO."""
         target = cia402.TARGET_OBJECT[self.config.mode][0]
-        self.rpdo_cob_id, self.rpdo = self._map(RPDO_COMM, RPDO_MAP, [cia402.CONTROLWORD, target])
-        self._unmap(RPDO_COMM + 1)
-        first, second = tpdo_objects(self.od)
-        self.tpdos = [self._map(TPDO_COMM, TPDO_MAP, first)]
+        self.rpdo_cob_id, self.rpdo = self._map(RPDO_COMMUNICATION, RPDO_MAPPING,
+                                                [cia402.CONTROLWORD, target])
+        self._unmap(RPDO_COMMUNICATION + 1)
+        first, second = tpdo_objects(self.od, self.simulated)
+        self.tpdos = [self._map(TPDO_COMMUNICATION, TPDO_MAPPING, first)]
         if self.config.velocity:
-            self.tpdos.append(self._map(TPDO_COMM + 1, TPDO_MAP + 1, second))
+            self.tpdos.append(self._map(TPDO_COMMUNICATION + 1, TPDO_MAPPING + 1, second))
         else:
-            self._unmap(TPDO_COMM + 1)
+            self._unmap(TPDO_COMMUNICATION + 1)
 
     def rpdo_data(self, controlword: int, target_SI: float) -> bytes:
         """RPDO1 data for ``controlword`` and a target in SI units (rad/s, A or V)."""

@@ -157,7 +157,8 @@ class Master:
         the period (0, none, in ``lockstep``, where the master waits for every answer).
 
         ``added_inertia_kgm2`` is written to the simulated drive's 0x2100 (the first drive);
-        a real drive has no such object and the operator attaches the disk by hand.
+        a real drive has no such object and the operator attaches the disk by hand. Every
+        device is checked (:meth:`~bus.drive.Drive.check_device`) before anything is written.
         """
         if period_s <= 0:
             raise InputError(f"period_s must be > 0, got {period_s}")
@@ -180,6 +181,8 @@ class Master:
             if not self.supervisor.booted[drive.id].wait(self.boot_timeout_s):
                 raise BusTimeout(f"node {drive.id}: no boot-up message within {self.boot_timeout_s} s "
                                  "after NMT reset node; is the drive powered, on this bus, at this id?")
+        for drive in self.drives:  # every device checked before anything is written to any
+            drive.check_device()
         for n, drive in enumerate(self.drives):
             drive.write(PRODUCER_HEARTBEAT_TIME, 0, max(1, int(round(self.heartbeat_period_s * 1000))))
             if drive.has(SYNCHRONOUS_COUNTER_OVERFLOW):
@@ -189,7 +192,7 @@ class Master:
             if drive.has(SYNCHRONOUS_WINDOW_LENGTH):
                 drive.write(SYNCHRONOUS_WINDOW_LENGTH, 0, window_us)
             if n == 0 and added_inertia_kgm2 is not None:
-                if drive.has(cia402.ADDED_INERTIA):
+                if drive.simulated and drive.has(cia402.ADDED_INERTIA):
                     drive.write(cia402.ADDED_INERTIA, 0, float(added_inertia_kgm2))
                 elif added_inertia_kgm2:
                     log.warning("node %d: attach the %.4g kg·m² disk now (real drive)",

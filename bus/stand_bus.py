@@ -45,14 +45,18 @@ class StandBus:
         Simulate the drives in this process; None: only on the ``virtual`` interface.
     seed : int or None
         Seed of the simulated sensor noise.
+    eds : path or None
+        EDS or DCF of every drive that has none of its own (a real drive's, from its
+        vendor); default: the simulated drive's. Each device is checked against it.
     master_options : dict
         Keyword arguments of :class:`~bus.master.Master` (timeouts).
     """
 
     def __init__(self, profile: str | None = None, config: BusConfig | None = None,
                  simulate: bool | None = None, seed: int | None = None,
-                 **master_options: Any) -> None:
+                 eds: str | Path | None = None, **master_options: Any) -> None:
         self.config = config or BusConfig.from_settings()
+        self.eds = eds
         if simulate is None:
             simulate = self.config.interface == "virtual"
         self.sim: SimStand | None = None
@@ -69,8 +73,8 @@ class StandBus:
 
     def setup(self, drives: Sequence[DriveSetupLike], period_s: float,
               added_inertia_kgm2: float | None = None, time_mode: str = "lockstep") -> None:
-        configs = [DriveConfig(d.node_id, d.mode, Scaling(d.counts_per_rev, d.rated_current_A), d.eds)
-                   for d in drives]
+        configs = [DriveConfig(d.node_id, d.mode, Scaling(d.counts_per_rev, d.rated_current_A),
+                               d.eds or self.eds) for d in drives]
         self.master.setup(configs, period_s, added_inertia_kgm2, time_mode)
 
     def run(self, targets: np.ndarray, *, time_mode: str = "lockstep",

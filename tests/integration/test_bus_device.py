@@ -1,0 +1,126 @@
+"""The device check before configuring (issue 20, item 4): the master reads 0x1000 and 0x1018,
+compares them with the drive's EDS or DCF, refuses what does not fit before it writes
+anything, and gives objects only the simulation has to a simulated drive only."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+
+from bus.adapters import BusConfig, connect_network
+from bus.cia301 import SDO_REQUEST_BASE
+from bus.eds import DEFAULT_EDS
+from bus.sim_device import SimIoDevice
+from bus.simstand import SimStand
+from bus.stand_bus import StandBus
+from stand.controller import ExperimentProfile, StandController, plan
+from stand.errors import DeviceMismatch, InputError
+
+MOTOR = "crouzet_82800502"
+#: Heartbeat period: long enough that a one-CPU User-Mode Linux on a loaded host never
+#: starves a heartbeat into a false alarm, s.
+CALM_HEARTBEAT_S = 0.5
+IO_NODE = 5
+#: A vendor's identity for the "real" drive (any vendor id and product code but ours).
+VENDOR_ID, PRODUCT_CODE = 0x000001AB, 0x00402001
+#: SDO client command specifier (CiA 301 §7.2.4.3): bits 5-7 of the first byte; 1 starts a
+#: download (a write), 2 an upload (a read).
+CCS_SHIFT, CCS_DOWNLOAD = 5, 1
+ADDED_INERTIA = ExperimentProfile(name="x", procedure="added_inertia", motor=MOTOR, repeats=1,
+                                  duration_s=0.5, period_s=0.001)
+
+
+def vendor_file(directory: Path, suffix: str) -> Path:
+    """The simulated drive's EDS as a vendor would ship it for its own drive: another identity,
+    the same objects (0x2100 stays, as a vendor parameter of the same index would)."""
+    text = DEFAULT_EDS.read_text()
+    text = re.sub(r"VendorNumber=\S+", f"VendorNumber=0x{VENDOR_ID:08X}", text)
+    text = re.sub(r"ProductNumber=\S+", f"ProductNumber=0x{PRODUCT_CODE:08X}", text)
+    for sub, value in ((1, VENDOR_ID), (2, PRODUCT_CODE)):
+        text = re.sub(rf"(\[1018sub{sub}\][^\[]*?DefaultValue=)\S+", rf"\g<1>0x{value:08X}", text)
+    text = text.replace("ParameterName=Simulated added inertia", "ParameterName=Vendor parameter")
+    path = directory / f"vendor_drive{suffix}"
+    path.write_text(text)
+    return path
+
+
+class SdoRequests(can.Listener):
+    """Every SDO request frame to one node, as another participant on the bus sees it."""
+
+    def __init__(self, node_id: int) -> None:
+        self.cob_id = SDO_REQUEST_BASE + node_id
+        self.commands: list[int] = []
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id == self.cob_id and msg.data:
+            self.commands.append(msg.data[0] >> CCS_SHIFT)
+
+
+@pytest.fixture
+def probe(can_config: BusConfig) -> Iterator[SdoRequests]:
+    listener = SdoRequests(IO_NODE)
+    with can.Bus(interface=can_config.interface, channel=can_config.channel) as bus:
+        notifier = can.Notifier(bus, [listener], timeout=0.05)
+        try:
+            yield listener
+        finally:
+            notifier.stop()
+
+
+def test_a_non_drive_device_is_refused_before_anything_is_written(
+        can_config: BusConfig, probe: SdoRequests) -> None:
+    (_, drives), = plan(ADDED_INERTIA)
+    at_io_node = [type(drives[0])(**{**drives[0].__dict__, "node_id": IO_NODE})]
+    network = connect_network(can_config, role="drive")
+    io = SimIoDevice(network, IO_NODE)
+    try:
+        with StandBus(None, can_config, simulate=False, heartbeat_period_s=CALM_HEARTBEAT_S) as bus, \
+                pytest.raises(DeviceMismatch, match=r"node 5: device type 0x00030191 \(CiA 401 "
+                              r"generic I/O\).*not a CiA 402 drive; nothing was written"):
+            bus.setup(at_io_node, 0.001)
+    finally:
+        io.close()
+        network.disconnect()
+    assert probe.commands and CCS_DOWNLOAD not in probe.commands  # reads only
+    assert io.node.data_store == {}
+
+
+def test_a_drive_its_eds_does_not_describe_is_refused(can_config: BusConfig, tmp_path: Path) -> None:
+    (_, drives), = plan(ADDED_INERTIA)
+    with SimStand(MOTOR, can_config, eds=vendor_file(tmp_path, ".eds")), \
+            StandBus(None, can_config, simulate=False, heartbeat_period_s=CALM_HEARTBEAT_S) as bus, \
+            pytest.raises(DeviceMismatch, match=r"node 1: the device is vendor id 0x000001AB, product "
+                          r"code 0x00402001, but .*motorstand_cia402.eds describes .*--eds FILE"):
+        bus.setup(drives, 0.001)
+
+
+@pytest.mark.parametrize("suffix", [".eds", ".dcf"])
+def test_a_real_drive_runs_with_its_vendor_file_and_gets_no_simulation_object(
+        can_config: BusConfig, tmp_path: Path, suffix: str) -> None:
+    (procedure, drives), = plan(ADDED_INERTIA)
+    vendor = vendor_file(tmp_path, suffix)
+    with SimStand(MOTOR, can_config, eds=vendor) as sim, \
+            StandBus(None, can_config, simulate=False, eds=vendor,
+                     heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+        record = StandController(bus).run_procedure(procedure, drives, tmp_path)
+        drive = bus.master.drives[0]
+        assert drive.identity is not None and not drive.simulated
+        assert (drive.identity.vendor_id, drive.identity.product_code) == (VENDOR_ID, PRODUCT_CODE)
+        assert sim.added_inertia == 0.0  # 0x2100 is the vendor's object here: never written
+        assert [layout.indices for _, layout in drive.tpdos][1] == (0x606C,)  # no 0x2001
+    assert record.complete and record.samples == procedure.samples
+
+
+def test_voltage_mode_is_refused_on_a_real_drive(can_config: BusConfig, tmp_path: Path) -> None:
+    (_, drives), = plan(ADDED_INERTIA)
+    vendor = vendor_file(tmp_path, ".eds")
+    in_voltage = [type(drives[0])(**{**drives[0].__dict__, "mode": "voltage"})]
+    with SimStand(MOTOR, can_config, eds=vendor), \
+            StandBus(None, can_config, simulate=False, eds=vendor,
+                     heartbeat_period_s=CALM_HEARTBEAT_S) as bus, \
+            pytest.raises(InputError, match="node 1: voltage mode is the simulated drive's"):
+        bus.setup(in_voltage, 0.001)
