@@ -20,6 +20,7 @@ CW_QUICK_STOP = 0x0002
 CW_FAULT_RESET = 0x0080
 
 # Modes of operation 0x6060 (negative values are manufacturer specific).
+MODE_NONE = 0
 MODE_CSV = 9
 MODE_CST = 10
 MODE_VOLTAGE = -1
@@ -35,6 +36,7 @@ MODES_OF_OPERATION = 0x6060
 MODES_DISPLAY = 0x6061
 POSITION_ACTUAL = 0x6064
 VELOCITY_ACTUAL = 0x606C
+TORQUE_ACTUAL = 0x6077
 CURRENT_ACTUAL = 0x6078
 VOLTAGE_ACTUAL = 0x2001
 ERROR_CODE = 0x603F
@@ -80,10 +82,17 @@ def state_of(statusword: int) -> State:
 
 
 class StateMachine:
-    """The drive side of the CiA 402 state machine (quick stop option: stay stopped)."""
+    """The drive side of the CiA 402 state machine (quick stop option: stay stopped).
+
+    Commands are told apart by the bits CiA 402 Table 34 gives them (bit 7 clear):
+    disable voltage ``xxxx xx0x``, quick stop ``xxxx x01x``, shutdown ``xxxx x110``, switch
+    on / disable operation ``xxxx 0111``, enable operation ``xxxx 1111``; fault reset is
+    the rising edge of bit 7.
+    """
 
     def __init__(self) -> None:
         self.state = State.SWITCH_ON_DISABLED
+        self._last_word = 0
 
     @property
     def statusword(self) -> int:
@@ -103,26 +112,28 @@ class StateMachine:
 
     def on_controlword(self, word: int) -> State:
         """Apply a controlword; return the new state."""
+        S = State
         s = self.state
-        command = word & 0x008F
-        if s is State.FAULT:
-            if word & CW_FAULT_RESET:
-                self.state = State.SWITCH_ON_DISABLED
+        reset_edge = bool(word & CW_FAULT_RESET) and not self._last_word & CW_FAULT_RESET
+        self._last_word = word
+        if s is S.FAULT:
+            if reset_edge:
+                self.state = S.SWITCH_ON_DISABLED
             return self.state
-        if command & 0x0002 == 0:  # disable voltage
-            self.state = State.SWITCH_ON_DISABLED
-        elif command & 0x0006 == 0x0002:  # quick stop
-            if s in (State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE):
-                self.state = State.QUICK_STOP_ACTIVE
-            else:
-                self.state = State.SWITCH_ON_DISABLED
-        elif command & 0x000F == CW_SHUTDOWN:
-            if s is not State.QUICK_STOP_ACTIVE:
-                self.state = State.READY_TO_SWITCH_ON
-        elif command & 0x000F == CW_SWITCH_ON:
-            if s in (State.READY_TO_SWITCH_ON, State.OPERATION_ENABLED):
-                self.state = State.SWITCHED_ON
-        elif command & 0x000F == CW_ENABLE_OPERATION and s in (
-                State.SWITCHED_ON, State.OPERATION_ENABLED):
-            self.state = State.OPERATION_ENABLED
+        if word & CW_FAULT_RESET:  # a fault reset outside FAULT commands nothing
+            return s
+        if word & 0x0002 == 0:  # disable voltage
+            self.state = S.SWITCH_ON_DISABLED
+        elif word & 0x0006 == 0x0002:  # quick stop
+            self.state = (S.QUICK_STOP_ACTIVE if s in (S.OPERATION_ENABLED, S.QUICK_STOP_ACTIVE)
+                          else S.SWITCH_ON_DISABLED)
+        elif word & 0x0007 == CW_SHUTDOWN:
+            if s is not S.QUICK_STOP_ACTIVE:
+                self.state = S.READY_TO_SWITCH_ON
+        elif word & 0x000F == CW_SWITCH_ON:  # switch on, or disable operation
+            if s in (S.READY_TO_SWITCH_ON, S.OPERATION_ENABLED):
+                self.state = S.SWITCHED_ON
+        elif word & 0x000F == CW_ENABLE_OPERATION and s in (
+                S.READY_TO_SWITCH_ON, S.SWITCHED_ON, S.OPERATION_ENABLED):
+            self.state = S.OPERATION_ENABLED  # from READY TO SWITCH ON: transitions 3 + 4
         return self.state

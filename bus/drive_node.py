@@ -1,10 +1,14 @@
 """A simulated CiA 402 drive: a canopen LocalNode with stand physics behind it.
 
 canopen's LocalNode answers SDO and follows NMT commands, but does no PDO work (canopen
-issue #555). This node adds: boot-up after an NMT reset, RPDO reception, TPDOs on SYNC
-only when OPERATIONAL (their mapping read from its own object dictionary, as the master
-wrote it), the CiA 402 state machine, and EMCY on a fault. The SYNC itself is handled
-by :class:`bus.simstand.SimStand`, which owns the plant that one or two nodes share.
+issue #555). This node adds: boot-up after an NMT reset, no SDO while STOPPED (CiA 301
+§7.3.2.2), RPDO reception (a synchronous RPDO, transmission type 0-240, is buffered and
+acts at the next SYNC; an event-driven one at once), TPDOs only when OPERATIONAL (their
+mapping and transmission type read from its own object dictionary, as a master wrote them
+or as CiA 402 predefines them at power-on: a synchronous TPDO of type n every n-th SYNC,
+any other when its data changed, looked at on each SYNC), the CiA 402 state machine, and
+EMCY on a fault and on its reset. The SYNC itself is handled by
+:class:`bus.simstand.SimStand`, which owns the plant that one or two nodes share.
 """
 
 from __future__ import annotations
@@ -24,14 +28,25 @@ from canopen.sdo import SdoAbortedError
 
 from bus import cia402
 from bus.adapters import has_kernel_timers
-from bus.cia301 import EMCY_BASE, EMCY_ERROR_RESET
+from bus.cia301 import (
+    EMCY_BASE,
+    EMCY_ERROR_RESET,
+    NMT_BOOT_UP,
+    NMT_OPERATIONAL,
+    NMT_PRE_OPERATIONAL,
+    NMT_STOPPED,
+    RPDO_COMMUNICATION,
+    RPDO_MAPPING,
+    SYNCHRONOUS_WINDOW_LENGTH,
+    TPDO_COMMUNICATION,
+    TPDO_MAPPING,
+)
 from bus.eds import Scaling, load_od
 from bus.pdo import COB_ID_INVALID, Layout
 from stand.physics.plant import Measurement
 
 log = logging.getLogger(__name__)
 
-NMT_INITIALISING, NMT_STOPPED, NMT_OPERATIONAL, NMT_PRE_OPERATIONAL = 0, 4, 5, 127
 #: Number of RPDOs and TPDOs the node offers.
 PDO_COUNT = 2
 #: Over-current trips when the measured current exceeds this multiple of 0x6073.
@@ -40,6 +55,11 @@ OVER_CURRENT_MARGIN = 1.0
 FOLLOWING_ERROR_TIME_S = 0.5
 #: SDO abort: object cannot be mapped / general parameter incompatibility.
 ABORT_GENERAL = 0x0800_0000
+#: Highest PDO transmission type that is synchronous (CiA 301 §7.5.2.35): 0 acyclic,
+#: 1-240 every n-th SYNC; 252-255 are RTR-only or event-driven.
+LAST_SYNCHRONOUS_TYPE = 240
+#: The target objects of the drive modes.
+TARGETS = tuple(index for index, _, _ in cia402.TARGET_OBJECT.values())
 
 
 class Plant(Protocol):
@@ -89,6 +109,9 @@ class SimDriveNode:
         self.node.add_write_callback(self._on_sdo_write)
         self.node.add_read_callback(self._on_sdo_read)
         network.add_node(self.node)
+        # SDO requests pass through the NMT state first (no SDO while STOPPED).
+        network.unsubscribe(self.node.sdo.rx_cobid, self.node.sdo.on_request)
+        network.subscribe(self.node.sdo.rx_cobid, self._on_sdo_request)
         network.subscribe(0, self._on_nmt)
         self._on_reset = on_reset
         self._on_write = on_write
@@ -119,12 +142,14 @@ class SimDriveNode:
     def _power_on(self) -> None:
         self.node.data_store.clear()
         self.sm = cia402.StateMachine()
-        self.mode = "current"
+        self.mode: str | None = None  # no mode of operation until one is written (0x6060 = 0)
         self.values: dict[int, int] = {cia402.CONTROLWORD: 0}
+        self._pending: dict[int, int] = {}  # synchronous RPDO data, acting at the next SYNC
+        self._tpdo_last: dict[int, bytes] = {}  # event-driven TPDOs: the data last sent
         self.syncs = 0
         self.quick_stop_at = None
         self.measurement = Measurement(0.0, 0.0, 0.0, 0.0)
-        self._tpdos: list[tuple[int, Layout]] | None = None
+        self._tpdos: list[tuple[int, Layout, int]] | None = None
         self._resubscribe({})
         self.node.data_store.setdefault(0x6075, {})[0] = struct.pack(
             "<I", int(round(self.scaling.rated_current_A * 1000)))
@@ -138,7 +163,7 @@ class SimDriveNode:
     def boot(self) -> None:
         """Send the boot-up message and enter PRE-OPERATIONAL (CiA 301 §7.2.8.3)."""
         nmt = self.node.nmt
-        nmt._state = NMT_INITIALISING
+        nmt._state = NMT_BOOT_UP
         self.network.send_message(0x700 + self.id, bytes([0]))
         nmt._state = NMT_PRE_OPERATIONAL
         period_ms = struct.unpack("<H", self.node.get_data(0x1017, 0))[0]
@@ -204,6 +229,8 @@ class SimDriveNode:
             self.heartbeat_muted = True
             self._stop_heartbeat_task()
         self.network.unsubscribe(0, self._on_nmt)
+        if self._on_sdo_request in self.network.subscribers.get(self.node.sdo.rx_cobid, []):
+            self.network.unsubscribe(self.node.sdo.rx_cobid, self._on_sdo_request)
         self._resubscribe({})
 
     def mute_heartbeat(self) -> None:
@@ -232,6 +259,10 @@ class SimDriveNode:
         self._refresh_heartbeat()
 
     # -- SDO callbacks -----------------------------------------------------------------
+    def _on_sdo_request(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self.nmt_state != NMT_STOPPED:
+            self.node.sdo.on_request(can_id, data, timestamp)
+
     def _on_sdo_read(self, index: int, subindex: int, od: Any) -> Any:
         m = self.measurement
         s = self.scaling
@@ -241,12 +272,14 @@ class SimDriveNode:
             return int(round(m.position_rad / s.rad_per_count))
         if index == cia402.VELOCITY_ACTUAL:
             return int(round(m.velocity_rad_s / s.velocity_unit_rad_s))
-        if index == cia402.CURRENT_ACTUAL:
+        if index in (cia402.CURRENT_ACTUAL, cia402.TORQUE_ACTUAL):
+            # Both per mille of their rated value; rated torque 0x6076 is the torque at
+            # rated current 0x6075, so the two read the same.
             return int(round(m.current_A / s.amp_per_unit))
         if index == cia402.VOLTAGE_ACTUAL:
             return int(round(m.voltage_V / s.voltage_unit_V))
         if index == cia402.MODES_DISPLAY:
-            return cia402.MODES[self.mode]
+            return cia402.MODES[self.mode] if self.mode else cia402.MODE_NONE
         if index == cia402.ERROR_CODE:
             return self.values.get(cia402.ERROR_CODE, 0)
         return None
@@ -256,15 +289,12 @@ class SimDriveNode:
         if index == cia402.CONTROLWORD:
             self._controlword(int(value))
         elif index == cia402.MODES_OF_OPERATION:
-            modes = {v: k for k, v in cia402.MODES.items()}
-            if value not in modes:
-                raise SdoAbortedError(0x0609_0030)  # value range exceeded
-            self.mode = modes[value]
-        elif index in (0x60FF, 0x6071, 0x2000):
+            self._mode_of_operation(int(value))
+        elif index in TARGETS:
             self.values[index] = int(value)
         elif index == 0x1017:
             self._set_heartbeat(int(value))
-        elif 0x1400 <= index < 0x1C00:
+        elif RPDO_COMMUNICATION <= index < TPDO_MAPPING + 0x200:
             if self.nmt_state == NMT_OPERATIONAL:
                 raise SdoAbortedError(ABORT_GENERAL | 0x22)  # not in the present device state
             self._tpdos = None
@@ -272,6 +302,12 @@ class SimDriveNode:
             self._on_write(self, index, value)
 
     # -- CiA 402 -----------------------------------------------------------------------
+    def _mode_of_operation(self, value: int) -> None:
+        modes = {v: k for k, v in cia402.MODES.items()}
+        if value not in modes and value != cia402.MODE_NONE:
+            raise SdoAbortedError(0x0609_0030)  # value range exceeded
+        self.mode = modes.get(value)
+
     def _controlword(self, word: int) -> None:
         before = self.sm.state
         self.values[cia402.CONTROLWORD] = word
@@ -304,7 +340,8 @@ class SimDriveNode:
         self.network.send_message(EMCY_BASE + self.id, struct.pack("<HB5s", code, register, b""))
 
     # -- PDO ---------------------------------------------------------------------------
-    def _layouts(self, comm: int, mapping: int) -> list[tuple[int, Layout]]:
+    def _layouts(self, comm: int, mapping: int) -> list[tuple[int, Layout, int]]:
+        """(COB-ID, layout, transmission type) of every valid PDO of ``comm``/``mapping``."""
         out = []
         for n in range(PDO_COUNT):
             cob_id = struct.unpack("<I", self.node.get_data(comm + n, 1))[0]
@@ -313,13 +350,15 @@ class SimDriveNode:
                 continue
             entries = [struct.unpack("<I", self.node.get_data(mapping + n, k))[0]
                        for k in range(1, count + 1)]
-            out.append((cob_id & 0x7FF, Layout.from_entries(self.od, entries)))
+            kind = self.node.get_data(comm + n, 2)[0]
+            out.append((cob_id & 0x7FF, Layout.from_entries(self.od, entries), kind))
         return out
 
-    def _rpdo_layouts(self) -> dict[int, Layout]:
-        return dict(self._layouts(0x1400, 0x1600))
+    def _rpdo_layouts(self) -> dict[int, tuple[Layout, bool]]:
+        return {cob_id: (layout, kind <= LAST_SYNCHRONOUS_TYPE)
+                for cob_id, layout, kind in self._layouts(RPDO_COMMUNICATION, RPDO_MAPPING)}
 
-    def _resubscribe(self, layouts: dict[int, Layout]) -> None:
+    def _resubscribe(self, layouts: dict[int, tuple[Layout, bool]]) -> None:
         for cob_id in self._subscribed:
             self.network.unsubscribe(cob_id, self._on_rpdo)
         self._rpdo = layouts
@@ -328,15 +367,36 @@ class SimDriveNode:
             self.network.subscribe(cob_id, self._on_rpdo)
 
     def _on_rpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        layout = self._rpdo.get(can_id)
-        if layout is None or self.nmt_state != NMT_OPERATIONAL:
+        rpdo = self._rpdo.get(can_id)
+        if rpdo is None or self.nmt_state != NMT_OPERATIONAL:
             return
-        for index, value in zip(layout.indices, layout.unpack(data), strict=True):
+        layout, synchronous = rpdo
+        if len(data) < layout.packer.size:
+            return  # too short for its mapping: not taken (CiA 301 §7.2.2.3)
+        values = dict(zip(layout.indices, (int(v) for v in layout.unpack(data)), strict=True))
+        if synchronous:
+            self._pending.update(values)  # the last before the SYNC counts
+        else:
+            self._apply(values)
+
+    def _apply(self, values: dict[int, int]) -> None:
+        for index, value in values.items():
             if index == cia402.CONTROLWORD:
                 if value != self.values.get(index):
-                    self._controlword(int(value))  # a controlword acts at once
+                    self._controlword(value)
+            elif index == cia402.MODES_OF_OPERATION:
+                try:
+                    self._mode_of_operation(value)
+                except SdoAbortedError:
+                    log.warning("node %d: mode of operation %d in an RPDO ignored", self.id, value)
             else:
-                self.values[index] = int(value)
+                self.values[index] = value
+
+    def apply_rpdos(self) -> None:
+        """At SYNC, first: the synchronous RPDO data received since the last SYNC act now."""
+        pending, self._pending = self._pending, {}
+        if pending:
+            self._apply(pending)
 
     def sample(self, dt_s: float, sync_stamp: float | None = None) -> None:
         """At SYNC: measure, check the limits, send the TPDOs when OPERATIONAL.
@@ -353,15 +413,22 @@ class SimDriveNode:
         self._check_following(m, dt_s)
         if self.nmt_state != NMT_OPERATIONAL:
             return
-        window_s = struct.unpack("<I", self.node.get_data(0x1007, 0))[0] * 1e-6 if 0x1007 in self.od else 0
+        window_s = (struct.unpack("<I", self.node.get_data(SYNCHRONOUS_WINDOW_LENGTH, 0))[0] * 1e-6
+                    if SYNCHRONOUS_WINDOW_LENGTH in self.od else 0)
         if self._tpdos is None:
-            self._tpdos = self._layouts(0x1800, 0x1A00)
-        for cob_id, layout in self._tpdos:
+            self._tpdos = self._layouts(TPDO_COMMUNICATION, TPDO_MAPPING)
+        for cob_id, layout, kind in self._tpdos:
+            values = [self._read_value(index) for index in layout.indices]
+            data = layout.pack(values)
+            if 0 < kind <= LAST_SYNCHRONOUS_TYPE:
+                if self.syncs % kind:
+                    continue  # type n: every n-th SYNC
+            elif self._tpdo_last.get(cob_id) == data:
+                continue  # event-driven (or acyclic): only when the data changed
+            self._tpdo_last[cob_id] = data
             self._tpdo_count += 1
             if self.pdo_drop_every and self._tpdo_count % self.pdo_drop_every == 0:
                 continue
-            values = [self._on_sdo_read(index, 0, None) for index in layout.indices]
-            data = layout.pack(values)
             if window_s and sync_stamp is not None and not 0 <= time.time() - sync_stamp <= window_s:
                 self.tpdos_discarded += 1
                 continue
@@ -380,9 +447,19 @@ class SimDriveNode:
         else:
             self._following_s = 0.0
 
+    def _read_value(self, index: int) -> int:
+        """The present value of a mappable object (the process data or the object dictionary)."""
+        value = self._on_sdo_read(index, 0, None)
+        if value is None:
+            value = self.values.get(index)
+        if value is None:
+            var: Any = self.od[index]
+            value = var.decode_raw(self.node.get_data(index, 0))
+        return int(value)
+
     def actuate(self) -> None:
         """At SYNC, after sampling: apply the latest target when OPERATION ENABLED."""
-        if not self.sm.enabled:
+        if not self.sm.enabled or self.mode is None:
             return
         index, _, _ = cia402.TARGET_OBJECT[self.mode]
         raw = self.values.get(index, 0)

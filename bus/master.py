@@ -242,8 +242,13 @@ class Master:
             self.network.send_message(cob_id, data)
         for drive in self.drives:
             drive.controlword = cia402.CW_QUICK_STOP
-        if not self.running:  # also advance simulated drives so the quick stop acts
-            self._sync_cycles(max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
+        if not self.running:
+            self._stop_cycles()
+
+    def _stop_cycles(self) -> None:
+        """SYNCs with quick-stop RPDOs for ``STOP_RAMP_S``: a synchronous RPDO acts at the
+        next SYNC (and the drives brake meanwhile)."""
+        self._sync_cycles(max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
 
     def _sync_cycles(self, cycles: int) -> None:
         counter = self._sync_counter
@@ -361,7 +366,8 @@ class Master:
             if error is not None:
                 self.quick_stop_all()
                 aborted = str(error)
-            elif self._quick_stop.is_set():
+            elif self._quick_stop.is_set():  # asked from another thread while the run went on
+                self._stop_cycles()
                 aborted = "quick stop requested"
             elif stop is not None and stop.is_set():
                 self.quick_stop_all()

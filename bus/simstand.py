@@ -175,6 +175,8 @@ class SimStand:
         for node in self.nodes:  # a due heartbeat first: it is older than the TPDOs
             node.heartbeat_tick(now)
         for node in self.nodes:
+            node.apply_rpdos()
+        for node in self.nodes:
             node.sample(dt_s, stamp)
         for node in self.nodes:
             node.actuate()
