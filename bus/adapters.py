@@ -13,6 +13,16 @@ from typing import Any
 import can
 import canopen
 
+from bus.cia301 import (
+    EMCY_BASE,
+    HEARTBEAT_BASE,
+    NMT_COB_ID,
+    RPDO_BASES,
+    SDO_REQUEST_BASE,
+    SDO_RESPONSE_BASE,
+    SYNC_COB_ID,
+    TPDO_BASES,
+)
 from stand.errors import BusError, InputError
 
 #: Interfaces that must never be used (traffic would leave the machine).
@@ -28,11 +38,11 @@ EXACT_MASK = 0x7FF
 #: What a master must hear (CiA 301 predefined connection set, any node id): EMCY (and a
 #: SYNC), TPDO1-4, SDO responses, heartbeats; and NMT commands (exact id), for another
 #: master's. 11-bit frames only.
-MASTER_RECEIVES = (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x700)
-MASTER_RECEIVES_EXACT = (0x000,)
+MASTER_RECEIVES = (EMCY_BASE, *TPDO_BASES, SDO_RESPONSE_BASE, HEARTBEAT_BASE)
+MASTER_RECEIVES_EXACT = (NMT_COB_ID,)
 #: What a drive must hear: NMT and SYNC (exact ids), RPDO1-4 and SDO requests (any node id).
-DRIVE_RECEIVES_EXACT = (0x000, 0x080)
-DRIVE_RECEIVES = (0x200, 0x300, 0x400, 0x500, 0x600)
+DRIVE_RECEIVES_EXACT = (NMT_COB_ID, SYNC_COB_ID)
+DRIVE_RECEIVES = (*RPDO_BASES, SDO_REQUEST_BASE)
 
 
 def receive_filters(role: str) -> list[dict[str, Any]]:

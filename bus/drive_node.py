@@ -16,25 +16,29 @@ from __future__ import annotations
 import logging
 import math
 import struct
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
-import can
 import canopen
 from canopen.sdo import SdoAbortedError
 
 from bus import cia402
-from bus.adapters import has_kernel_timers
 from bus.cia301 import (
     EMCY_BASE,
     EMCY_ERROR_RESET,
+    HEARTBEAT_BASE,
+    MANUFACTURER_END,
+    MANUFACTURER_FIRST,
     NMT_BOOT_UP,
+    NMT_COB_ID,
     NMT_OPERATIONAL,
     NMT_PRE_OPERATIONAL,
+    NMT_RESET_COMMUNICATION,
+    NMT_RESET_NODE,
     NMT_STOPPED,
+    PRODUCER_HEARTBEAT_TIME,
     RPDO_COMMUNICATION,
     RPDO_MAPPING,
     SYNCHRONOUS_WINDOW_LENGTH,
@@ -42,6 +46,7 @@ from bus.cia301 import (
     TPDO_MAPPING,
 )
 from bus.eds import Scaling, load_od
+from bus.heartbeat_producer import HeartbeatProducer
 from bus.pdo import COB_ID_INVALID, Layout
 from stand.physics.plant import Measurement
 
@@ -112,23 +117,15 @@ class SimDriveNode:
         # SDO requests pass through the NMT state first (no SDO while STOPPED).
         network.unsubscribe(self.node.sdo.rx_cobid, self.node.sdo.on_request)
         network.subscribe(self.node.sdo.rx_cobid, self._on_sdo_request)
-        network.subscribe(0, self._on_nmt)
+        network.subscribe(NMT_COB_ID, self._on_nmt)
         self._on_reset = on_reset
         self._on_write = on_write
         self.max_current_A = max_current_A
         #: Speed error that counts as a following error (None: not checked), rad/s.
         self.following_window_rad_s: float | None = None
         self._following_s = 0.0
-        self.heartbeat_muted = False
-        self.heartbeat_period_s = 0.0
-        self._heartbeat_due = 0.0
-        self._heartbeat_lock = threading.Lock()
-        # The node produces its own heartbeat, not canopen's cyclic task: from a kernel timer
-        # where the bus has them (SocketCAN broadcast manager: on time however busy this
-        # process is, as a drive's firmware timer), else from heartbeat_tick.
-        self._kernel_heartbeat = has_kernel_timers(network.bus)
-        self._heartbeat_task: can.CyclicSendTaskABC | None = None
-        self._heartbeat_state = -1
+        # Its own heartbeat, not canopen's cyclic task (see bus.heartbeat_producer).
+        self.heartbeat = HeartbeatProducer(network, node_id, lambda: self.nmt_state)
         self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.pdo_drop_every = 0  # fault injection: drop every n-th TPDO (0 = none)
         self._tpdo_count = 0
@@ -151,9 +148,9 @@ class SimDriveNode:
         self.measurement = Measurement(0.0, 0.0, 0.0, 0.0)
         self._tpdos: list[tuple[int, Layout, int]] | None = None
         self._resubscribe({})
-        self.node.data_store.setdefault(0x6075, {})[0] = struct.pack(
+        self.node.data_store.setdefault(cia402.RATED_CURRENT, {})[0] = struct.pack(
             "<I", int(round(self.scaling.rated_current_A * 1000)))
-        self.node.data_store.setdefault(0x6073, {})[0] = struct.pack(
+        self.node.data_store.setdefault(cia402.MAX_CURRENT, {})[0] = struct.pack(
             "<H", min(0xFFFF, int(self.max_current_A / self.scaling.amp_per_unit)))
 
     @property
@@ -164,91 +161,41 @@ class SimDriveNode:
         """Send the boot-up message and enter PRE-OPERATIONAL (CiA 301 §7.2.8.3)."""
         nmt = self.node.nmt
         nmt._state = NMT_BOOT_UP
-        self.network.send_message(0x700 + self.id, bytes([0]))
+        self.network.send_message(HEARTBEAT_BASE + self.id, bytes([NMT_BOOT_UP]))
         nmt._state = NMT_PRE_OPERATIONAL
-        period_ms = struct.unpack("<H", self.node.get_data(0x1017, 0))[0]
+        period_ms = struct.unpack("<H", self.node.get_data(PRODUCER_HEARTBEAT_TIME, 0))[0]
         self._set_heartbeat(period_ms)
 
     def _set_heartbeat(self, period_ms: int) -> None:
-        with self._heartbeat_lock:
-            self.heartbeat_period_s = period_ms / 1000.0
-            self._heartbeat_due = time.monotonic() + self.heartbeat_period_s
-            if self._kernel_heartbeat:
-                self._stop_heartbeat_task()
-                if self.heartbeat_period_s and not self.heartbeat_muted:
-                    state = self.nmt_state
-                    bus = self.network.bus
-                    assert bus is not None
-                    self._heartbeat_task = bus.send_periodic(self._heartbeat_frame(state),
-                                                             self.heartbeat_period_s)
-                    self._heartbeat_state = state
-
-    def _heartbeat_frame(self, state: int) -> can.Message:
-        return can.Message(arbitration_id=0x700 + self.id, data=bytes([state]), is_extended_id=False)
-
-    def _stop_heartbeat_task(self) -> None:
-        """Stop the kernel's heartbeat task, if any (the heartbeat lock is held)."""
-        task, self._heartbeat_task = self._heartbeat_task, None
-        if task is not None:
-            try:
-                task.stop()
-            except (can.CanError, OSError) as exc:  # the bus may be shutting down
-                log.debug("node %d: stopping the heartbeat task: %s", self.id, exc)
+        self.heartbeat.set_period(period_ms / 1000.0)
 
     def _refresh_heartbeat(self) -> None:
-        """Kernel heartbeat: carry the present NMT state from the next beat on (the timer
-        keeps running, so the beats stay one period apart)."""
-        with self._heartbeat_lock:
-            task, state = self._heartbeat_task, self.nmt_state
-            if task is not None and state != self._heartbeat_state:
-                assert isinstance(task, can.ModifiableCyclicTaskABC)
-                task.modify_data(self._heartbeat_frame(state))
-                self._heartbeat_state = state
+        self.heartbeat.refresh()
 
     def heartbeat_tick(self, now: float) -> float | None:
-        """Send the heartbeat if it is due at ``now``; return when the next one is due.
-
-        Called from the SYNC handler and from the stand's heartbeat thread, whichever comes
-        first, as drive firmware polls its timers in its main loop. With a kernel heartbeat
-        it only keeps the beat's NMT state current (and returns None).
-        """
-        if self._kernel_heartbeat:
-            self._refresh_heartbeat()
-            return None
-        with self._heartbeat_lock:
-            period = self.heartbeat_period_s
-            if not period or self.heartbeat_muted:
-                return None
-            if now >= self._heartbeat_due:
-                self.network.send_message(0x700 + self.id, bytes([self.nmt_state]))
-                self._heartbeat_due = max(self._heartbeat_due + period, now)
-            return self._heartbeat_due
+        """Send the heartbeat if due at ``now`` (see :meth:`HeartbeatProducer.tick`)."""
+        return self.heartbeat.tick(now)
 
     def close(self) -> None:
-        with self._heartbeat_lock:
-            self.heartbeat_muted = True
-            self._stop_heartbeat_task()
-        self.network.unsubscribe(0, self._on_nmt)
+        self.heartbeat.mute()
+        self.network.unsubscribe(NMT_COB_ID, self._on_nmt)
         if self._on_sdo_request in self.network.subscribers.get(self.node.sdo.rx_cobid, []):
             self.network.unsubscribe(self.node.sdo.rx_cobid, self._on_sdo_request)
         self._resubscribe({})
 
     def mute_heartbeat(self) -> None:
         """Fault injection: stop producing heartbeats (the node otherwise keeps working)."""
-        with self._heartbeat_lock:
-            self.heartbeat_muted = True
-            self._stop_heartbeat_task()
+        self.heartbeat.mute()
 
     # -- NMT ---------------------------------------------------------------------------
     def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
         command, target = data[0], data[1]
         if target not in (0, self.id):
             return
-        if command in (0x81, 0x82):  # reset node / reset communication
-            with self._heartbeat_lock:
-                self._stop_heartbeat_task()  # the boot-up is the first frame after a reset
+        if command in (NMT_RESET_NODE, NMT_RESET_COMMUNICATION):
+            self.heartbeat.stop()  # the boot-up is the first frame after a reset
             self._power_on()
-            if command == 0x81 and self._on_reset:
+            if command == NMT_RESET_NODE and self._on_reset:
                 self._on_reset(self)
             self.boot()
         elif self.nmt_state != NMT_OPERATIONAL and self.sm.enabled:
@@ -292,13 +239,13 @@ class SimDriveNode:
             self._mode_of_operation(int(value))
         elif index in TARGETS:
             self.values[index] = int(value)
-        elif index == 0x1017:
+        elif index == PRODUCER_HEARTBEAT_TIME:
             self._set_heartbeat(int(value))
         elif RPDO_COMMUNICATION <= index < TPDO_MAPPING + 0x200:
             if self.nmt_state == NMT_OPERATIONAL:
                 raise SdoAbortedError(ABORT_GENERAL | 0x22)  # not in the present device state
             self._tpdos = None
-        elif 0x2000 <= index < 0x6000 and self._on_write:
+        elif MANUFACTURER_FIRST <= index < MANUFACTURER_END and self._on_write:
             self._on_write(self, index, value)
 
     # -- CiA 402 -----------------------------------------------------------------------

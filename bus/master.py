@@ -18,8 +18,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import can
-import canopen
 import numpy as np
 
 from bus import cia402
@@ -46,7 +44,7 @@ from bus.sync import (
     SyncWatch,
     check_time_mode,
 )
-from bus.trace import Trace
+from bus.trace import MasterNetwork, Trace
 from stand.errors import BusError, BusTimeout, InputError, RunAborted, StandError
 
 log = logging.getLogger(__name__)
@@ -72,27 +70,6 @@ ECHO_INTERFACES = ("socketcan", "virtual")
 
 ChunkCallback = Callable[[Samples, int, int], None]
 ProgressCallback = Callable[[int, int], None]
-
-
-class MasterNetwork(canopen.Network):
-    """A canopen network that also logs the frames it sends to the run's trace."""
-
-    trace: Trace | None = None
-    channel: str | None = None
-
-    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
-        if not self.bus:
-            raise BusError("the master's CAN bus is closed")
-        msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=False,
-                          is_remote_frame=remote, is_rx=False, channel=self.channel)
-        try:
-            with self.send_lock:
-                self.bus.send(msg)
-        except can.CanError as exc:
-            raise BusError(f"cannot send frame 0x{can_id:03X}: {exc}") from exc
-        trace = self.trace
-        if trace is not None:
-            trace.sent(msg)
 
 
 class Master:

@@ -1,7 +1,8 @@
 """Raw traffic of a run, in a standard python-can log format chosen by suffix.
 
 ``.log`` (candump), ``.asc`` (Vector ASCII) or ``.blf`` (Vector binary). Frames the master
-receives come from the bus reader thread; frames it sends are logged by the sender.
+receives come from the bus reader thread; frames it sends are logged by the sender, the
+master's :class:`MasterNetwork`.
 """
 
 from __future__ import annotations
@@ -11,8 +12,9 @@ import time
 from pathlib import Path
 
 import can
+import canopen
 
-from stand.errors import InputError
+from stand.errors import BusError, InputError
 
 TRACE_SUFFIXES = (".log", ".asc", ".blf")
 
@@ -54,3 +56,24 @@ class Trace(can.Listener):
             if not self._closed:
                 self._closed = True
                 self._writer.stop()
+
+
+class MasterNetwork(canopen.Network):
+    """A canopen network that also logs the frames it sends to the run's trace."""
+
+    trace: Trace | None = None
+    channel: str | None = None
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        if not self.bus:
+            raise BusError("the master's CAN bus is closed")
+        msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=False,
+                          is_remote_frame=remote, is_rx=False, channel=self.channel)
+        try:
+            with self.send_lock:
+                self.bus.send(msg)
+        except can.CanError as exc:
+            raise BusError(f"cannot send frame 0x{can_id:03X}: {exc}") from exc
+        trace = self.trace
+        if trace is not None:
+            trace.sent(msg)
