@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from bus import cia402
-from bus.adapters import BusConfig, connect_network
+from bus.adapters import BusConfig, connect_network, has_kernel_timers
 from bus.cia301 import (
     COMMUNICATION_CYCLE_PERIOD,
     NMT_COB_ID,
@@ -39,6 +39,7 @@ from bus.sampler import MissingPdos, Sampler, Samples
 from bus.sync import (
     SYNC_COUNTER_OVERFLOW,
     SYNC_WINDOW_FRACTION,
+    KernelSync,
     RealtimeClock,
     SyncCounter,
     SyncWatch,
@@ -64,6 +65,7 @@ STOP_RAMP_S = 0.1
 #: A run aborts when a drive's TPDOs are missing for this many SYNCs in a row (lockstep:
 #: each window waited ``pdo_timeout_s``; real time: at least ``pdo_timeout_s`` of SYNCs).
 MISSING_PDO_SYNCS = 3
+SYNC_PRODUCERS = ("auto", "kernel", "python")
 #: Interfaces that hand the sender its own frames back with their bus stamp when asked
 #: (``receive_own_messages``); the master takes each SYNC's time on the bus from the echo.
 ECHO_INTERFACES = ("socketcan", "virtual")
@@ -83,13 +85,21 @@ class Master:
         Timeouts (the module constants by default; tests shrink them), s.
     heartbeat_consumer_factor : float
         Heartbeat consumer time as a multiple of the producer period (> 1, CiA 301).
+    sync_producer : {'auto', 'kernel', 'python'}
+        Who sends the real-time SYNCs: the kernel's broadcast manager (``kernel``; SocketCAN
+        only), the master's Python clock (``python``), or the kernel where the bus has one
+        (``auto``).
     """
 
     def __init__(self, config: BusConfig | None = None, *,
                  heartbeat_period_s: float = HEARTBEAT_PERIOD_S,
                  sdo_timeout_s: float = SDO_TIMEOUT_S, pdo_timeout_s: float = PDO_TIMEOUT_S,
                  boot_timeout_s: float = BOOT_TIMEOUT_S,
-                 heartbeat_consumer_factor: float = HEARTBEAT_CONSUMER_FACTOR) -> None:
+                 heartbeat_consumer_factor: float = HEARTBEAT_CONSUMER_FACTOR,
+                 sync_producer: str = "auto") -> None:
+        if sync_producer not in SYNC_PRODUCERS:
+            raise InputError(f"sync_producer must be one of {', '.join(SYNC_PRODUCERS)}, "
+                             f"not {sync_producer!r}")
         self.config = config or BusConfig()
         #: Real time: each window's SYNC is stamped from its echo (its own bus stamp, in bus
         #: order with the answers); elsewhere from the time ``send`` returned.
@@ -105,6 +115,13 @@ class Master:
         self.network = MasterNetwork()
         self.network.channel = self.config.channel
         connect_network(bus_config, self.network, role="master")
+        kernel_timers = has_kernel_timers(self.network.bus)
+        if sync_producer == "kernel" and not kernel_timers:
+            self.network.disconnect()
+            raise InputError(f"sync_producer 'kernel' needs SocketCAN's broadcast manager; interface "
+                             f"{self.config.interface!r} has none: use 'python' or 'auto'")
+        #: Real-time SYNCs come from the kernel's broadcast manager.
+        self.kernel_sync = kernel_timers and sync_producer != "python"
         self.drives: list[Drive] = []
         self.supervisor = Supervisor(self.network, heartbeat_consumer_factor)
         self._counters: dict[int, dict[str, int]] = {}
@@ -279,15 +296,21 @@ class Master:
         if echo:
             self.network.subscribe(SYNC_COB_ID, on_sync_echo)
         counter = self._sync_counter
-        watch = self._sync_watch = SyncWatch(self.sync_echo, counter.upcoming(), counter.overflow)
+        watch = self._sync_watch = SyncWatch(self.sync_echo, counter.upcoming(), counter.overflow,
+                                             counted=not (self.kernel_sync and time_mode == "realtime"))
         self.network.subscribe(SYNC_COB_ID, watch.on_sync)
         self.supervisor.expect_operational([d.id for d in self.drives])
         frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
                    for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
                   if d.rpdo is not None]
         self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
-        clock = RealtimeClock(self.period_s, window_s) if time_mode == "realtime" else None
-        missing = MissingPdos([d.id for d in self.drives], MISSING_PDO_SYNCS if clock is None else
+        realtime = time_mode == "realtime"
+        kernel = (KernelSync(self.network.bus, self.period_s, counter)
+                  if realtime and self.kernel_sync and self.network.bus is not None else None)
+        clock = RealtimeClock(self.period_s, window_s) if realtime and kernel is None else None
+        if kernel is not None:
+            self.network.subscribe(SYNC_COB_ID, kernel.on_sync)
+        missing = MissingPdos([d.id for d in self.drives], MISSING_PDO_SYNCS if not realtime else
                               max(MISSING_PDO_SYNCS, math.ceil(self.pdo_timeout_s / self.period_s)))
         send = self.network.send_message
         error: StandError | None = None
@@ -299,8 +322,16 @@ class Master:
                     error = self._check_nodes()
                     if error is not None or self._quick_stop.is_set() or (stop is not None and stop.is_set()):
                         break
-                    wall = clock.wait() if clock is not None else time.monotonic()
-                    if clock is not None and k > 0:  # a period after SYNC k-1: its answers are in
+                    if kernel is not None:
+                        wall = kernel.before_window(k, sampler.complete, window_s, self.pdo_timeout_s)
+                        if wall is None:
+                            error = BusTimeout(f"SYNC {k - 1} of the kernel's broadcast manager not "
+                                               f"heard within {self.pdo_timeout_s} s; every drive was "
+                                               "quick-stopped")
+                            break
+                    else:
+                        wall = clock.wait() if clock is not None else time.monotonic()
+                    if realtime and k > 0:  # a period after SYNC k-1: its answers are in
                         error = missing.check(k - 1, sampler.missing(k - 1))
                         if error is not None:
                             break
@@ -309,11 +340,14 @@ class Master:
                     value, data = counter.next()
                     sampler.open(k, wall, value)
                     watch.sent()
-                    send(SYNC_COB_ID, data)
-                    if not echo:
-                        sampler.sent(time.time())
+                    if kernel is None:
+                        send(SYNC_COB_ID, data)
+                        if not echo:
+                            sampler.sent(time.time())
+                    elif k == 0:
+                        kernel.start()  # from now on the kernel sends a SYNC every period
                     done = k + 1
-                    if clock is None:
+                    if not realtime:
                         error = self._await_window(sampler, stop)
                         if error is None:
                             error = missing.check(k, [] if sampler.complete.is_set()
@@ -324,11 +358,16 @@ class Master:
                         on_chunk(sampler.result(done), done - chunk_samples, done)
                     if progress is not None:
                         progress(done, n)
-                if clock is not None and error is None:  # the TPDOs of the last window
+                if realtime and error is None:  # the TPDOs of the last window
+                    if kernel is not None:
+                        kernel.wait(done, self.pdo_timeout_s)
                     sampler.complete.wait(self.pdo_timeout_s)
             except KeyboardInterrupt:
                 error = RunAborted("interrupted (Ctrl-C): drives quick-stopped")
             finally:
+                if kernel is not None:
+                    kernel.stop()
+                    self.network.unsubscribe(SYNC_COB_ID, kernel.on_sync)
                 sampler.close()
                 self.running = False
                 self.supervisor.release()

@@ -68,6 +68,9 @@ class Samples:
     drives : list of DriveSamples
     aborted : str or None
         Why the run stopped early, or None.
+    sync_stamp_s : ndarray
+        Bus stamp of each window's SYNC as the master heard it (real time on an interface
+        that echoes the SYNC; NaN elsewhere), ``time.time()`` epoch, s.
     """
 
     period_s: float
@@ -77,6 +80,7 @@ class Samples:
     drives: list[DriveSamples]
     aborted: str | None = None
     meta: dict[str, object] = field(default_factory=dict)
+    sync_stamp_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def lost(self) -> dict[int, int]:
@@ -131,6 +135,7 @@ class Sampler:
         self.expected = sum(pdos)
         self.wall_s = np.zeros(samples)
         self.sync_counter = np.zeros(samples, dtype=np.int16)
+        self.sync_stamp = np.full(samples, np.nan)
         self.window = -1
         self._opened_stamp: float | None = 0.0
         self._parked: list[tuple[int, bytearray, float]] = []
@@ -169,6 +174,7 @@ class Sampler:
                 return
             if self._opened_stamp is None:
                 self._opened_stamp = stamp
+                self.sync_stamp[self.window] = stamp
                 parked, self._parked = self._parked, []
                 for args in parked:
                     self._take(*args)
@@ -249,7 +255,8 @@ class Sampler:
                                        lost=int(np.sum(~received)),
                                        duplicates=self.duplicates[n], late=self.late[n]))
         return Samples(self.period_s, count, self.wall_s[:count].copy(),
-                       self.sync_counter[:count].copy(), drives, aborted)
+                       self.sync_counter[:count].copy(), drives, aborted,
+                       sync_stamp_s=self.sync_stamp[:count].copy())
 
 
 class MissingPdos:

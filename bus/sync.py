@@ -2,22 +2,29 @@
 
 - ``lockstep``: the next SYNC goes out as soon as every drive answered the last one, and
   simulated drives advance exactly one period per SYNC: deterministic, as fast as the bus.
-- ``realtime``: SYNCs follow a wall-clock period (deadlines on ``time.monotonic()``; the
-  last stretch before a deadline is spent in ``time.sleep(0)``, which keeps the jitter low
-  and still lets the bus reader threads have the interpreter).
+- ``realtime``: SYNCs follow a period. Where the bus has kernel timers (SocketCAN's
+  broadcast manager) the kernel sends them (:class:`KernelSync`: one cyclic task over the
+  frames of the whole counter sequence, so each SYNC carries its counter), on time however
+  busy this process is; the master follows their echoes. Elsewhere the Python clock does
+  (:class:`RealtimeClock`: deadlines on ``time.monotonic()``; the last stretch before a
+  deadline is spent in ``time.sleep(0)``, which keeps the jitter low and still lets the
+  bus reader threads have the interpreter).
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
+import can
 import numpy as np
 
 from bus.cia301 import SYNC_COB_ID
 from stand.errors import ForeignSync, InputError
 
-__all__ = ["SYNC_COB_ID", "SyncCounter", "SyncWatch", "RealtimeClock", "Jitter", "check_time_mode"]
+__all__ = ["SYNC_COB_ID", "SyncCounter", "SyncWatch", "RealtimeClock", "KernelSync", "Jitter",
+           "check_time_mode"]
 #: SYNC counter overflow value written to 0x1019 (1..240; 0 = no counter).
 SYNC_COUNTER_OVERFLOW = 240
 #: Below this much time to a deadline the clock yields instead of sleeping, s.
@@ -65,7 +72,10 @@ class SyncWatch:
     Subscribe :meth:`on_sync` to 0x080; :meth:`sent` before each SYNC leaves.
     """
 
-    def __init__(self, echo: bool, first: int, overflow: int = SYNC_COUNTER_OVERFLOW) -> None:
+    def __init__(self, echo: bool, first: int, overflow: int = SYNC_COUNTER_OVERFLOW,
+                 counted: bool = True) -> None:
+        #: False when the kernel sends the SYNCs (the master does not count each one out).
+        self.counted = counted
         self.echo = echo
         self.overflow = overflow
         self.expected = first
@@ -79,7 +89,7 @@ class SyncWatch:
 
     def on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """Subscriber of 0x080 (bus reader thread)."""
-        ours = self.echo and self.heard < self.sent_count and (
+        ours = self.echo and (self.heard < self.sent_count or not self.counted) and (
             bytes(data[:1]) == (bytes([self.expected]) if self.overflow else b"")
             and len(data) == (1 if self.overflow else 0))
         if ours:
@@ -131,6 +141,81 @@ class RealtimeClock:
             time.sleep(0)
         self.last = now
         return now
+
+
+class KernelSync:
+    """SYNCs from the kernel's broadcast manager: one cyclic task over the counter's frames.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        A bus with kernel timers (SocketCAN).
+    period_s : float
+        SYNC period, s.
+    counter : SyncCounter
+        The master's counter; the task's frames start at its next value and run through
+        the whole sequence (the kernel sends them in turn, one a period). After :meth:`stop`
+        the counter is set to the last value heard on the bus, as if the master had sent
+        every SYNC itself.
+
+    Subscribe :meth:`on_sync` to 0x080 (the master hears the kernel's SYNCs as any frame).
+    """
+
+    def __init__(self, bus: can.BusABC, period_s: float, counter: SyncCounter) -> None:
+        self.bus = bus
+        self.period_s = period_s
+        self.counter = counter
+        first, overflow = counter.upcoming(), counter.overflow
+        values = ([(first - 1 + i) % overflow + 1 for i in range(overflow)] if overflow else [0])
+        self.frames = [can.Message(arbitration_id=SYNC_COB_ID, is_extended_id=False,
+                                   data=bytes([v]) if overflow else b"") for v in values]
+        self.task: can.CyclicSendTaskABC | None = None
+        self._heard = threading.Condition()
+        self.heard = 0
+        self.last: tuple[int, float] | None = None  # (counter, bus stamp) of the newest
+
+    def start(self) -> None:
+        self.task = self.bus.send_periodic(self.frames, self.period_s)
+
+    def on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """Subscriber of 0x080 (bus reader thread)."""
+        with self._heard:
+            self.heard += 1
+            self.last = (data[0] if data else 0, timestamp)
+            self._heard.notify_all()
+
+    def wait(self, count: int, timeout_s: float) -> tuple[int, float] | None:
+        """Wait until ``count`` SYNCs were heard; the newest's (counter, stamp), or None."""
+        with self._heard:
+            if not self._heard.wait_for(lambda: self.heard >= count, timeout_s):
+                return None
+            return self.last
+
+    def before_window(self, k: int, answered: threading.Event, window_s: float,
+                      timeout_s: float) -> float | None:
+        """Wait until window ``k`` may be prepared: SYNC k-1 heard, and its answers in
+        (``answered`` set) or its synchronous window ``window_s`` over. Return
+        ``time.monotonic()`` then, or None when SYNC k-1 was not heard within ``timeout_s``."""
+        if k == 0:
+            return time.monotonic()
+        heard = self.wait(k, timeout_s)
+        if heard is None:
+            return None
+        closes = heard[1] + window_s - time.time()  # bus stamps count on time.time()
+        if closes > 0:
+            answered.wait(min(closes, timeout_s))
+        return time.monotonic()
+
+    def stop(self) -> None:
+        """Stop the task; the counter goes on from the last SYNC heard (one period later)."""
+        task, self.task = self.task, None
+        if task is None:
+            return
+        task.stop()
+        time.sleep(self.period_s)  # the echo of a SYNC sent just before the stop
+        with self._heard:
+            if self.last is not None and self.counter.overflow:
+                self.counter.value = self.last[0]
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,9 @@ class Trace(can.Listener):
     """A thread-safe writer of one trace file."""
 
     def __init__(self, path: str | Path, echoed: tuple[int, ...] = ()) -> None:
-        #: 11-bit ids the master's bus hands back to it (its own frames): not logged twice.
+        #: 11-bit ids the master's bus hands back to it: logged as they come back (with
+        #: their bus stamp, among whatever else is on the bus on that id: the kernel's
+        #: SYNCs, another producer's), not when sent.
         self.echoed = frozenset(echoed)
         self.path = Path(path)
         if self.path.suffix not in TRACE_SUFFIXES:
@@ -35,8 +37,6 @@ class Trace(can.Listener):
         self._closed = False
 
     def on_message_received(self, msg: can.Message) -> None:
-        if not msg.is_extended_id and msg.arbitration_id in self.echoed:
-            return  # the bus echoing a frame the master sent: logged by :meth:`sent`
         self._log(msg)
 
     def _log(self, msg: can.Message) -> None:
@@ -47,7 +47,9 @@ class Trace(can.Listener):
             self.frames += 1
 
     def sent(self, msg: can.Message) -> None:
-        """Log a frame the master sent (stamped now)."""
+        """Log a frame the master sent (stamped now), unless the bus hands it back."""
+        if not msg.is_extended_id and msg.arbitration_id in self.echoed:
+            return
         msg.timestamp = time.time()
         self._log(msg)
 

@@ -8,6 +8,7 @@ RPDOs. Nothing of ours runs on the master side.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Iterator
 
@@ -39,6 +40,21 @@ TORQUE_PER_MILLE = 200
 TORQUE_TOL_PER_MILLE = 40
 
 
+def _reset(node: BaseNode402) -> None:
+    """NMT reset node and wait for the boot-up (canopen's ``wait_for_bootup`` only sees a
+    boot-up that comes after it was called: on SocketCAN the drive is quicker)."""
+    booted = threading.Event()
+
+    def on_heartbeat(state: int) -> None:
+        if state == 0:
+            booted.set()
+
+    node.nmt.add_heartbeat_callback(on_heartbeat)
+    node.nmt.state = "RESET"
+    assert booted.wait(BOOT_TIMEOUT_S), "no boot-up message after NMT reset node"
+    node.nmt._callbacks.remove(on_heartbeat)
+
+
 def _wait_for(predicate: object, timeout_s: float = 2.0) -> bool:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -68,8 +84,7 @@ def foreign(can_config: BusConfig) -> Iterator[tuple[SimStand, BaseNode402]]:
 def test_base_node_402_runs_the_simulated_drive(foreign: tuple[SimStand, BaseNode402]) -> None:
     sim, node = foreign
     # Boot: NMT reset node, wait for the boot-up message.
-    node.nmt.state = "RESET"
-    node.nmt.wait_for_bootup(BOOT_TIMEOUT_S)
+    _reset(node)
     assert node.nmt.state == "PRE-OPERATIONAL"
 
     # Read the PDO configuration: the CiA 402 predefined mapping.
@@ -141,8 +156,7 @@ def test_base_node_402_runs_the_simulated_drive(foreign: tuple[SimStand, BaseNod
 def test_base_node_402_boot_and_pdo_read_see_the_drive_pre_operational(
         foreign: tuple[SimStand, BaseNode402]) -> None:
     _, node = foreign
-    node.nmt.state = "RESET"
-    node.nmt.wait_for_bootup(BOOT_TIMEOUT_S)
+    _reset(node)
     node.setup_402_state_machine(read_pdos=True)
     assert node.rpdo_pointers[cia402.CONTROLWORD].index == cia402.CONTROLWORD
     assert cia402.STATUSWORD in node.tpdo_values
