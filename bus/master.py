@@ -66,6 +66,8 @@ STOP_RAMP_S = 0.1
 #: each window waited ``pdo_timeout_s``; real time: at least ``pdo_timeout_s`` of SYNCs).
 MISSING_PDO_SYNCS = 3
 SYNC_PRODUCERS = ("auto", "kernel", "python")
+#: Longest wait for the bus to hand back the last SYNC of the stop cycles, s.
+ECHO_TIMEOUT_S = 0.5
 #: Interfaces that hand the sender its own frames back with their bus stamp when asked
 #: (``receive_own_messages``); the master takes each SYNC's time on the bus from the echo.
 ECHO_INTERFACES = ("socketcan", "virtual")
@@ -245,13 +247,33 @@ class Master:
         self._sync_cycles(max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
 
     def _sync_cycles(self, cycles: int) -> None:
+        """``cycles`` SYNCs, each after the drives' RPDOs; where the bus hands the SYNCs back,
+        return once the last came back (so a trace being written holds it)."""
         counter = self._sync_counter
-        for _ in range(cycles):
-            for d in self.drives:
-                if d.rpdo is not None:
-                    self.network.send_message(d.rpdo_cob_id, d.rpdo_data(d.controlword, 0.0))
-            self.network.send_message(SYNC_COB_ID, counter.next()[1])
-            time.sleep(0 if self.time_mode == "lockstep" else self.period_s)
+        last = threading.Event()
+        data = b""
+
+        def on_sync(can_id: int, echoed: bytearray, timestamp: float) -> None:
+            if bytes(echoed) == data:
+                last.set()
+
+        if self.sync_echo:
+            self.network.subscribe(SYNC_COB_ID, on_sync)
+        try:
+            for k in range(cycles):
+                for d in self.drives:
+                    if d.rpdo is not None:
+                        self.network.send_message(d.rpdo_cob_id, d.rpdo_data(d.controlword, 0.0))
+                value, frame = counter.next()
+                if k == cycles - 1:
+                    data = frame
+                self.network.send_message(SYNC_COB_ID, frame)
+                time.sleep(0 if self.time_mode == "lockstep" else self.period_s)
+            if self.sync_echo and cycles:
+                last.wait(ECHO_TIMEOUT_S)
+        finally:
+            if self.sync_echo:
+                self.network.unsubscribe(SYNC_COB_ID, on_sync)
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, targets: np.ndarray, *, time_mode: str = "lockstep",
@@ -265,7 +287,7 @@ class Master:
         loss, an EMCY, a drive leaving OPERATIONAL, TPDOs of a drive missing for
         :data:`MISSING_PDO_SYNCS` SYNCs in a row, or a SYNC another producer sent quick-stops
         every drive and ends the run early; so do ``stop`` and Ctrl-C. Either way the samples
-        so far are returned, with ``Samples.aborted`` saying why (and ``meta["error"]`` the
+        so far are returned, with ``Samples.aborted`` saying why (and ``Samples.error`` the
         error), and the trace ends with the quick-stop frames.
         """
         check_time_mode(time_mode)
@@ -296,8 +318,9 @@ class Master:
         if echo:
             self.network.subscribe(SYNC_COB_ID, on_sync_echo)
         counter = self._sync_counter
+        kernel_period_s = self.period_s if self.kernel_sync and time_mode == "realtime" else None
         watch = self._sync_watch = SyncWatch(self.sync_echo, counter.upcoming(), counter.overflow,
-                                             counted=not (self.kernel_sync and time_mode == "realtime"))
+                                             kernel_period_s)
         self.network.subscribe(SYNC_COB_ID, watch.on_sync)
         self.supervisor.expect_operational([d.id for d in self.drives])
         frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))

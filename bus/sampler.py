@@ -87,6 +87,12 @@ class Samples:
         return {d.node_id: d.lost for d in self.drives}
 
     @property
+    def error(self) -> Exception | None:
+        """The error that ended the run early (``meta["error"]``), or None."""
+        error = self.meta.get("error")
+        return error if isinstance(error, Exception) else None
+
+    @property
     def complete(self) -> bool:
         """True when the run ended normally and every window of every drive got each of its
         TPDOs once, in time: no TPDO lost, duplicated or late."""

@@ -25,11 +25,18 @@ from stand.errors import InputError
 
 
 class DriveSetupLike(Protocol):
-    node_id: int
-    mode: str
-    counts_per_rev: int
-    rated_current_A: float
-    eds: str | None
+    """One drive of a run (``stand.controller.DriveSetup``), read only."""
+
+    @property
+    def node_id(self) -> int: ...
+    @property
+    def mode(self) -> str: ...
+    @property
+    def counts_per_rev(self) -> int: ...
+    @property
+    def rated_current_A(self) -> float: ...
+    @property
+    def eds(self) -> str | None: ...
 
 
 class StandBus:

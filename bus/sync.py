@@ -66,37 +66,52 @@ class SyncCounter:
 class SyncWatch:
     """Tells the master's own SYNCs from another producer's (CiA 301 allows one producer).
 
-    ``echo``: the master hears its own SYNCs (they come back in the order sent, carrying the
-    counter sequence from ``first``); without echo, every SYNC heard is another producer's.
-    A SYNC out of the sequence, of another length, or beyond the count sent is foreign.
-    Subscribe :meth:`on_sync` to 0x080; :meth:`sent` before each SYNC leaves.
+    ``echo``: the master hears its own SYNCs (in the order sent, carrying the counter
+    sequence from ``first``); without echo, every SYNC heard is another producer's. A SYNC
+    of ours may be missing from what the master's socket hands on (a full receive queue on
+    a loaded machine), so one whose counter is ahead of the next expected still counts as
+    ours if the master had sent that many: counted out by :meth:`sent`, or with
+    ``period_s`` (SYNCs the kernel sends) as many periods as passed since the last one
+    heard. Anything else (out of sequence, another length, more than sent) is foreign.
+    Subscribe :meth:`on_sync` to 0x080.
     """
 
     def __init__(self, echo: bool, first: int, overflow: int = SYNC_COUNTER_OVERFLOW,
-                 counted: bool = True) -> None:
-        #: False when the kernel sends the SYNCs (the master does not count each one out).
-        self.counted = counted
+                 period_s: float | None = None) -> None:
         self.echo = echo
         self.overflow = overflow
+        #: The kernel's period when it sends the SYNCs (the master does not count them out).
+        self.period_s = period_s
         self.expected = first
         self.sent_count = 0
         self.heard = 0
+        self.unheard = 0  # SYNCs of ours the socket did not hand on
+        self._last_stamp: float | None = None
         self.foreign = 0
         self.first_foreign: bytes | None = None
 
     def sent(self) -> None:
         self.sent_count += 1
 
+    def _may_skip(self, timestamp: float) -> int:
+        """How many of our SYNCs may have gone unheard before one stamped ``timestamp``."""
+        if self.period_s is None:
+            return self.sent_count - self.heard - 1
+        if self._last_stamp is None:
+            return 0
+        return int(round((timestamp - self._last_stamp) / self.period_s)) - 1
+
     def on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """Subscriber of 0x080 (bus reader thread)."""
-        ours = self.echo and (self.heard < self.sent_count or not self.counted) and (
-            bytes(data[:1]) == (bytes([self.expected]) if self.overflow else b"")
-            and len(data) == (1 if self.overflow else 0))
-        if ours:
-            self.heard += 1
-            if self.overflow:
-                self.expected = self.expected % self.overflow + 1
-            return
+        if self.echo and len(data) == (1 if self.overflow else 0):
+            skipped = (data[0] - self.expected) % self.overflow if self.overflow else 0
+            if skipped <= self._may_skip(timestamp):
+                self.heard += 1 + skipped
+                self.unheard += skipped
+                self._last_stamp = timestamp
+                if self.overflow:
+                    self.expected = data[0] % self.overflow + 1
+                return
         self.foreign += 1
         if self.first_foreign is None:
             self.first_foreign = bytes(data)

@@ -23,11 +23,12 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from stand.bus_interface import DriveSamples, Samples, StandBus
 from stand.errors import BusError, LimitError, ProfileError, RunAborted
 from stand.excitation import excitation
 from stand.procedures import (
@@ -95,19 +96,6 @@ class DriveSetup:
     rated_current_A: float
     eds: str | None = None
     limits: Any = None
-
-
-class StandBus(Protocol):
-    """What the controller needs from the bus (``bus.stand_bus.StandBus``)."""
-
-    def setup(self, drives: Sequence[Any], period_s: float,
-              added_inertia_kgm2: float | None = None, time_mode: str = ...) -> None: ...
-    def run(self, targets: np.ndarray, *, time_mode: str = ..., on_chunk: Any = ...,
-            chunk_samples: int = ..., stop: threading.Event | None = ..., progress: Any = ...,
-            trace_path: str | Path | None = ...) -> Any: ...
-    def quick_stop_all(self) -> None: ...
-    def stop_drives(self) -> None: ...
-    def status(self) -> dict[str, Any]: ...
 
 
 @dataclass
@@ -206,7 +194,8 @@ def check_limits(procedure: Procedure, drives: Sequence[DriveSetup]) -> None:
                              "nothing was sent")
 
 
-def run_columns(kind: str, samples: Any, start: int = 0, stop: int | None = None) -> dict[str, np.ndarray]:
+def run_columns(kind: str, samples: Samples, start: int = 0,
+                stop: int | None = None) -> dict[str, np.ndarray]:
     """Run-file columns (CONTRACT §1) of the bus samples ``start:stop``, gaps left out."""
     stop = samples.count if stop is None else stop
     rows = slice(start, stop)
@@ -216,7 +205,7 @@ def run_columns(kind: str, samples: Any, start: int = 0, stop: int | None = None
         valid &= d.valid[rows]
     out: dict[str, np.ndarray] = {"time_s": (np.arange(start, stop) * samples.period_s)[valid]}
 
-    def col(d: Any, name: str) -> np.ndarray | None:
+    def col(d: DriveSamples, name: str) -> np.ndarray | None:
         values = d.columns.get(name)
         return None if values is None else values[rows][valid]
 
@@ -318,7 +307,7 @@ class StandController:
             if progress is not None:
                 progress(k, n)
 
-        def on_chunk(samples: Any, start: int, stop: int) -> None:
+        def on_chunk(samples: Samples, start: int, stop: int) -> None:
             if self.on_chunk is not None:
                 self.on_chunk(run_columns(procedure.kind, samples, start, stop))
 
@@ -338,14 +327,14 @@ class StandController:
                 log.warning("stopping the drives after run %s: %s", procedure.name, exc)
         wall = time.monotonic() - started
         record = self._write(procedure, samples, out, trace, wall)
-        error = samples.meta.get("error")
+        error = samples.error
         if error is not None:
             raise RunAborted(f"run {procedure.name} aborted after {samples.count} of "
                              f"{procedure.samples} samples: {error}; samples so far kept"
                              + (f" in {record.path}" if record.path else "")) from error
         return record
 
-    def _write(self, procedure: Procedure, samples: Any, out: Path | None, trace: str | None,
+    def _write(self, procedure: Procedure, samples: Samples, out: Path | None, trace: str | None,
                wall_s: float) -> RunResult:
         columns = run_columns(procedure.kind, samples)
         path = None

@@ -14,6 +14,7 @@ import pytest
 from bus.adapters import BusConfig
 from bus.master import Master
 from bus.stand_bus import StandBus
+from bus.sync import SyncWatch
 from stand.controller import ExperimentProfile, plan
 from stand.errors import InputError
 
@@ -63,3 +64,28 @@ def test_the_kernel_producer_is_refused_where_the_bus_has_none() -> None:
         Master(BusConfig("virtual", "no-bcm"), sync_producer="kernel")
     with pytest.raises(InputError, match="sync_producer must be one of auto, kernel, python"):
         Master(BusConfig("virtual", "no-bcm"), sync_producer="bcm")
+
+
+def _watch_hears(watch: SyncWatch, frames: list[tuple[bytes, float]]) -> int:
+    for data, stamp in frames:
+        watch.on_sync(0x080, bytearray(data), stamp)
+    return watch.foreign
+
+
+def test_a_sync_of_ours_the_socket_lost_is_not_taken_for_another_producer() -> None:
+    watch = SyncWatch(echo=True, first=1, overflow=OVERFLOW)
+    for _ in range(4):
+        watch.sent()
+    # SYNC 2 never reached the master's socket (a full receive queue): 3 and 4 are ours.
+    assert _watch_hears(watch, [(b"\x01", 0.0), (b"\x03", 0.002), (b"\x04", 0.003)]) == 0
+    assert watch.unheard == 1
+    # A fifth SYNC heard when four were sent, and a SYNC without counter: another producer's.
+    assert _watch_hears(watch, [(b"\x05", 0.004), (b"", 0.004)]) == 2
+
+
+def test_kernel_syncs_may_skip_only_as_many_as_periods_passed() -> None:
+    period = 0.001
+    watch = SyncWatch(echo=True, first=1, overflow=OVERFLOW, period_s=period)
+    # 1, then 3 two periods later (2 unheard): ours; then 9 half a period later: foreign.
+    assert _watch_hears(watch, [(b"\x01", 10.0), (b"\x03", 10.002), (b"\x09", 10.0025)]) == 1
+    assert watch.unheard == 1 and watch.expected == 4
