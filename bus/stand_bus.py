@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -21,22 +21,8 @@ from bus.eds import Scaling
 from bus.master import ChunkCallback, Master, ProgressCallback
 from bus.sampler import Samples
 from bus.simstand import SimStand
+from stand.bus_interface import DriveSetup
 from stand.errors import InputError
-
-
-class DriveSetupLike(Protocol):
-    """One drive of a run (``stand.controller.DriveSetup``), read only."""
-
-    @property
-    def node_id(self) -> int: ...
-    @property
-    def mode(self) -> str: ...
-    @property
-    def counts_per_rev(self) -> int: ...
-    @property
-    def rated_current_A(self) -> float: ...
-    @property
-    def eds(self) -> str | None: ...
 
 
 class StandBus:
@@ -78,7 +64,7 @@ class StandBus:
                 self.sim.close()
             raise
 
-    def setup(self, drives: Sequence[DriveSetupLike], period_s: float,
+    def setup(self, drives: Sequence[DriveSetup], period_s: float,
               added_inertia_kgm2: float | None = None, time_mode: str = "lockstep") -> None:
         configs = [DriveConfig(d.node_id, d.mode, Scaling(d.counts_per_rev, d.rated_current_A),
                                d.eds or self.eds) for d in drives]
