@@ -137,6 +137,8 @@ class Master:
         self.window = 0
         self.time_mode = "lockstep"
         self.quick_stop_wall_s: float | None = None
+        #: Windows of the last run whose targets left after their (kernel's) SYNC.
+        self.late_target_windows: list[int] = []
 
     # -- setup -----------------------------------------------------------------------------
     def _forget_drives(self) -> None:
@@ -336,6 +338,7 @@ class Master:
         missing = MissingPdos([d.id for d in self.drives], MISSING_PDO_SYNCS if not realtime else
                               max(MISSING_PDO_SYNCS, math.ceil(self.pdo_timeout_s / self.period_s)))
         send = self.network.send_message
+        targets_sent = np.full(n, np.nan)  # time.time() once each window's RPDOs were sent
         error: StandError | None = None
         done = 0
         try:
@@ -360,6 +363,7 @@ class Master:
                             break
                     for per_drive in frames:
                         send(*per_drive[k])
+                    targets_sent[k] = time.time()
                     value, data = counter.next()
                     sampler.open(k, wall, value)
                     watch.sent()
@@ -420,6 +424,13 @@ class Master:
         samples = sampler.result(done, aborted)
         samples.meta["error"] = error
         samples.meta["foreign_syncs"] = watch.foreign
+        if kernel is not None:
+            # The kernel's SYNC does not wait for the master: RPDOs sent after their SYNC
+            # act one SYNC late, and the run is not the commanded one from there on.
+            with np.errstate(invalid="ignore"):
+                late = np.flatnonzero(targets_sent[:done] > samples.sync_stamp_s)
+            samples.late_targets = int(late.size)
+        self.late_target_windows = late.tolist() if kernel is not None else []
         samples.meta["trace_frames"] = trace.frames if trace is not None else 0
         for d, ds in zip(self.drives, samples.drives, strict=True):
             self._counters[d.id] = {"lost": ds.lost, "duplicates": ds.duplicates, "late": ds.late}

@@ -69,8 +69,12 @@ class Samples:
     aborted : str or None
         Why the run stopped early, or None.
     sync_stamp_s : ndarray
-        Bus stamp of each window's SYNC as the master heard it (real time on an interface
-        that echoes the SYNC; NaN elsewhere), ``time.time()`` epoch, s.
+        Bus stamp of each window's SYNC as the master heard it in real time (where the
+        interface does not echo it, when ``send`` returned; NaN in lockstep),
+        ``time.time()`` epoch, s.
+    late_targets : int
+        Windows whose RPDOs (targets) left after their SYNC (only when the kernel sends the
+        SYNCs): they acted a SYNC late.
     """
 
     period_s: float
@@ -81,6 +85,7 @@ class Samples:
     aborted: str | None = None
     meta: dict[str, object] = field(default_factory=dict)
     sync_stamp_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    late_targets: int = 0
 
     @property
     def lost(self) -> dict[int, int]:
@@ -94,9 +99,11 @@ class Samples:
 
     @property
     def complete(self) -> bool:
-        """True when the run ended normally and every window of every drive got each of its
-        TPDOs once, in time: no TPDO lost, duplicated or late."""
-        return self.aborted is None and all(d.lost == d.duplicates == d.late == 0 for d in self.drives)
+        """True when the run ended normally, every target acted at its own SYNC, and every
+        window of every drive got each of its TPDOs once, in time: no TPDO lost, duplicated
+        or late."""
+        return (self.aborted is None and self.late_targets == 0
+                and all(d.lost == d.duplicates == d.late == 0 for d in self.drives))
 
     def time_s(self) -> np.ndarray:
         return np.arange(self.count) * self.period_s

@@ -54,6 +54,10 @@ class Samples(Protocol):
     @property
     def error(self) -> Exception | None: ...
     @property
+    def late_targets(self) -> int:
+        """Windows whose targets reached the drives after their SYNC (a SYNC late)."""
+        ...
+    @property
     def complete(self) -> bool: ...
 
 

@@ -114,6 +114,8 @@ class RunResult:
     duplicates: dict[int, int]
     late: dict[int, int]
     aborted: str | None = None
+    #: Samples whose targets reached the drives a SYNC late (real time, kernel SYNC).
+    late_targets: int = 0
     wall_time_s: float = 0.0
     stand_time_s: float = 0.0
     description: str = ""
@@ -355,7 +357,7 @@ class StandController:
             lost=dict(zip(ids, (d.lost for d in samples.drives), strict=True)),
             duplicates=dict(zip(ids, (d.duplicates for d in samples.drives), strict=True)),
             late=dict(zip(ids, (d.late for d in samples.drives), strict=True)),
-            aborted=samples.aborted, wall_time_s=wall_s,
+            aborted=samples.aborted, late_targets=int(samples.late_targets), wall_time_s=wall_s,
             stand_time_s=samples.count * procedure.sample_period_s,
             description=procedure.description)
 

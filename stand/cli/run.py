@@ -92,7 +92,8 @@ def summarize(result: dict[str, Any]) -> str:
     lines = [f"{result['experiment']} ({result['procedure']}) -> {result['output']}"]
     for r in result["runs"]:
         gaps = "" if r["complete"] else (f"  INCOMPLETE: lost {r['lost']}, duplicates {r['duplicates']}, "
-                                         f"late {r['late']}, aborted: {r['aborted']}")
+                                         f"late {r['late']}, targets a SYNC late {r['late_targets']}, "
+                                         f"aborted: {r['aborted']}")
         lines.append(f"  {r['name']}: {r['samples']} samples at {1 / r['period_s']:.4g} Hz, "
                      f"{r['stand_time_s']:.3g} s stand time in {r['wall_time_s']:.3g} s -> {r['path']}{gaps}")
     return "\n".join(lines)

@@ -115,7 +115,13 @@ def test_realtime_samples_are_never_misattributed(can_config: BusConfig, tmp_pat
     with StandBus("cycloidal_two_motor", can_config, simulate=True, seed=SEED,
                   heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
         record = StandController(bus, "realtime").run_experiment(experiment, tmp_path).runs[0]
+        late_targets = bus.master.late_target_windows
     assert record.samples == 100 and record.aborted is None
+    # Where the kernel sends the SYNCs, a target the loaded master sent after its SYNC acted
+    # a SYNC late: the run says so, and from there on the stand did another experiment.
+    assert record.late_targets == len(late_targets)
+    assert not late_targets or not record.complete
+    first_late = late_targets[0] if late_targets else 100
     stand = load_stand("cycloidal_two_motor")
     (procedure, _), = plan(experiment)
     direct = simulate_stand_procedure(procedure, stand, load_motor(stand.motor_in),
@@ -124,9 +130,10 @@ def test_realtime_samples_are_never_misattributed(can_config: BusConfig, tmp_pat
     header = text[0].split(",")
     rows = np.array([[float(v) for v in line.split(",")] for line in text[1:]])
     k = np.rint(rows[:, header.index("time_s")] / procedure.sample_period_s).astype(int)
+    rows, k = rows[k <= first_late], k[k <= first_late]  # a late target acts after sample k
     # Under load (a one-CPU User-Mode Linux) answers miss their window and are dropped,
     # counted; what must never happen is a kept sample from another SYNC.
-    assert len(k) >= MIN_KEPT, f"only {len(k)} of 100 samples kept: {record.lost}"
+    assert len(k) >= min(MIN_KEPT, first_late), f"only {len(k)} of 100 samples kept: {record.lost}"
     for column in ("position_in_rad", "position_out_rad"):
         error = np.abs(rows[:, header.index(column)] - direct[column][k])
-        assert np.max(error) <= 1.01 * ONE_COUNT_RAD, column
+        assert not len(error) or np.max(error) <= 1.01 * ONE_COUNT_RAD, column
