@@ -32,6 +32,7 @@ import can
 import canopen
 import numpy as np
 
+from bus.device import eds_identity, is_simulated
 from bus.drive import TPDO_COMM, TPDO_MAP, tpdo_objects
 from bus.eds import Scaling, load_od
 from bus.pdo import COB_ID_INVALID, Layout, entries_for
@@ -107,6 +108,9 @@ def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int]
            seen: set[int]) -> Iterator[tuple[int, Layout]]:
     """(COB-ID, layout) of each TPDO of ``node`` whose COB-ID occurs in the trace."""
     standard = tpdo_objects(od)
+    # The simulated drive's EDS holds CiA 402's power-on mapping, which the motorstand
+    # master always replaces: for it, the master's mapping is the better guess.
+    ours = _is_simulated_eds(od)
     for p in range(len(TPDO_BASES)):
         comm, mapping = TPDO_COMM + p, TPDO_MAP + p
         cob = sdo.get((comm, 1), _default(od, comm, 1) or TPDO_BASES[p] + node)
@@ -114,13 +118,18 @@ def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int]
             continue
         if (mapping, 0) in sdo:
             entries = [sdo.get((mapping, k), 0) for k in range(1, sdo[(mapping, 0)] + 1)]
-        elif _default(od, mapping, 0):
+        elif _default(od, mapping, 0) and not ours:
             entries = [_default(od, mapping, k) for k in range(1, _default(od, mapping, 0) + 1)]
         elif p < len(standard):
             entries = entries_for(od, standard[p])
         else:
             continue
         yield cob & 0x7FF, Layout.from_entries(od, entries)
+
+
+def _is_simulated_eds(od: canopen.ObjectDictionary) -> bool:
+    identity = eds_identity(od)
+    return identity is not None and is_simulated(identity)
 
 
 @dataclass
@@ -197,7 +206,8 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
             continue
         own = sdo.get(n, {})
         mapping_from[n] = ("sdo" if any((TPDO_MAP + p, 0) in own for p in range(4))
-                           else "eds" if _default(od, TPDO_MAP, 0) else "motorstand master")
+                           else "eds" if _default(od, TPDO_MAP, 0) and not _is_simulated_eds(od)
+                           else "motorstand master")
         for p, (cob, layout) in enumerate(found):
             tpdos[cob] = (len(node_ids), p, layout)
         node_ids.append(n)

@@ -41,7 +41,7 @@ def test_ctrl_c_keeps_the_partial_run_and_ends_the_trace_with_the_stop(
     out, err = proc.communicate(timeout=EXIT_TIMEOUT_S)
     err = "".join(lines) + err
     assert proc.returncode == 1, err
-    assert "interrupted (Ctrl-C): drives quick-stopped" in err and "samples so far kept" in err
+    assert "interrupted (Ctrl-C): drives quick-stopped" in err and "samples so far kept" in err, err
 
     rows = (tmp_path / "no_load_1.csv").read_text().splitlines()
     assert rows[0].startswith("time_s") and 0 < len(rows) - 1 < DURATION_S * 1000

@@ -34,5 +34,5 @@ def test_a_command_is_required_after_options(capsys: pytest.CaptureFixture[str])
 
 def test_profiles_list_the_eds() -> None:
     profiles = list_profiles()
-    assert profiles["eds"] == ["motorstand_cia402.eds"]
+    assert profiles["eds"] == ["motorstand_cia402.eds", "motorstand_io401.eds"]
     assert "crouzet_82800502_eol" in profiles["limits"]
