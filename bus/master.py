@@ -132,6 +132,9 @@ class Master:
         self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self._window_written_us = 0
         self._sync_watch: SyncWatch | None = None
+        #: The thread of the run going on, and set once its stop SYNCs went out.
+        self._run_thread: int | None = None
+        self._stop_done = threading.Event()
         self.running = False
         self.period_s = 0.0
         self.window = 0
@@ -229,9 +232,13 @@ class Master:
     def quick_stop_all(self) -> None:
         """Send CiA 402 quick stop to every drive at once (RPDO frames, back to back).
 
-        Safe to call from any thread; a running :meth:`run` ends after its current SYNC.
+        Safe to call from any thread; a running :meth:`run` ends after its current SYNC. A
+        synchronous RPDO acts at the next SYNC, so SYNCs follow (:meth:`_stop_cycles`); from
+        another thread than the run's it returns once they went out.
         """
         self._quick_stop.set()
+        stopped = self._stop_done
+        wait = self.running and threading.get_ident() != self._run_thread
         frames = [(d.rpdo_cob_id, d.rpdo_data(cia402.CW_QUICK_STOP, 0.0))
                   for d in self.drives if d.rpdo is not None]
         if self.quick_stop_wall_s is None:
@@ -242,6 +249,8 @@ class Master:
             drive.controlword = cia402.CW_QUICK_STOP
         if not self.running:
             self._stop_cycles()
+        elif wait:  # from another thread (POST /stop): return once the run's stop SYNCs went
+            stopped.wait(self.pdo_timeout_s + STOP_RAMP_S)
 
     def _stop_cycles(self) -> None:
         """SYNCs with quick-stop RPDOs for ``STOP_RAMP_S``: a synchronous RPDO acts at the
@@ -328,6 +337,7 @@ class Master:
         frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
                    for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
                   if d.rpdo is not None]
+        self._run_thread, self._stop_done = threading.get_ident(), threading.Event()
         self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
         realtime = time_mode == "realtime"
         kernel = (KernelSync(self.network.bus, self.period_s, counter)
@@ -416,6 +426,7 @@ class Master:
                 self.quick_stop_all()
                 aborted = "stop requested"
         finally:
+            self._stop_done.set()
             if trace is not None:
                 self.network.trace = None
                 assert self.network.notifier is not None
