@@ -12,12 +12,10 @@ from __future__ import annotations
 import argparse
 import logging
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from stand.cli import options
 from stand.controller import StandController, load_experiment
-from stand.errors import InputError
 from stand.jsonable import to_jsonable
 from stand.settings import get_settings
 
@@ -39,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=options.whole(1, 100), help="override the profile's repeats")
     parser.add_argument("--duration", type=options.duration,
                         help="override the profile's run length, s")
-    parser.add_argument("--eds", metavar="FILE",
+    parser.add_argument("--eds", metavar="FILE", type=options.input_file,
                         help="EDS or DCF of the drives (a real drive's, from its vendor; default: the "
                              "simulated drive's); each device's 0x1000 and 0x1018 are checked against it")
     parser.add_argument("--trace-format", choices=["log", "asc", "blf"], default="log",
@@ -75,8 +73,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             log.info("%s: %3.0f %%", experiment.name, 100 * fraction)
 
     progress.last = -1  # type: ignore[attr-defined]
-    if args.eds is not None and not Path(args.eds).is_file():
-        raise InputError(f"--eds: no such file: {args.eds}; give the drive's EDS or DCF")
     with StandBus(profile, config, simulate=args.simulate, seed=args.seed, eds=args.eds) as bus:
         controller = StandController(bus, time_mode, progress=progress,
                                      trace_suffix=f".{args.trace_format}")
