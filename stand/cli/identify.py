@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import logging
 from typing import Any
 
 from stand import IdentifyResult, identify, read_run
 from stand.cli import options
 from stand.ident.derivatives import METHODS
+from stand.ident.identify import ESTIMATORS
+
+LOG = logging.getLogger(__name__)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,17 +25,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--half-width", type=options.whole(1, 10**5), default=None,
                         help="half width of the default method's kernel, samples "
                              "(default: chosen from the current's noise)")
+    parser.add_argument("--effects", default="auto", metavar="auto|none|NAME[,NAME]",
+                        help="effects in the model: 'auto' (default: the data choose), 'none' "
+                             "(seed 000's model), or names (coulomb_friction, "
+                             "stribeck_friction, cogging, current_offset, delay, torque_ripple)")
+    parser.add_argument("--estimator", choices=ESTIMATORS, default=None,
+                        help="how current noise is kept from biasing Kt/J: 'iv' instrumental "
+                             "variables, 'bc' bias-compensated least squares, 'ls' plain least "
+                             "squares, 'auto' the better of bc and iv (default with effects)")
 
 
 def run(args: argparse.Namespace) -> IdentifyResult:
-    return identify(read_run(args.run, "single"), args.method, args.no_load_current,
-                    args.half_width)
+    result = identify(read_run(args.run, "single"), args.method, args.no_load_current,
+                      args.half_width, args.effects, args.estimator)
+    if not args.json:  # human mode: the warnings on stderr, beside the summary
+        for text in result.warnings:
+            LOG.warning("warning: %s", text)
+    return result
 
 
 def summarize(result: dict[str, Any]) -> str:
+    low, high = result["Kt_over_J_ci95"]
     return (
-        f"{result['source']}: Kt/J = {result['Kt_over_J']:.5g} ± {result['Kt_over_J_se']:.2g} "
+        f"{result['source']}: Kt/J = {result['Kt_over_J']:.5g} (95 % {low:.5g} … {high:.5g}) "
         f"rad/(s²·A), D/J = {result['D_over_J']:.4g} 1/s, C/J = {result['C_over_J']:.4g} 1/s²; "
         f"fit {result['fit_percent']:.1f} %, condition number {result['condition_number']:.3g}, "
-        f"{result['samples']} samples ({result['method']} method)"
+        f"{result['samples']} samples ({result['method']} method, {result['estimator']}); "
+        f"effects: {', '.join(result['effects']) or 'none'}"
     )

@@ -114,6 +114,39 @@ def kernel(half_width: int, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.nda
     return g, g1, g2
 
 
+def interval_weights(half_width: int, dt_s: float) -> np.ndarray:
+    """Weights of the default kernel for values held over sample periods.
+
+    A signal that holds ``v[k]`` over the period from sample ``k`` to ``k + 1`` (a
+    current settled by a drive's fast loop, a mean over the period) gives, through the
+    continuous kernel, ``Σ_j W[j]·v[n − j]`` at sample ``n`` with
+    ``W[j] = ∫ g(τ) dτ`` over ``((j − 1)·Δt, j·Δt)``, ``j = −half_width … half_width + 1``.
+    Exact for such signals, where treating the held value as a sample at ``k`` would
+    misplace it by half a period. Scaled like :func:`kernel` (its ``Σ g·Δt = 1``).
+    """
+    T = (half_width + 1) * dt_s
+    p = np.polynomial.Polynomial([1.0, 0.0, -1.0]) ** KERNEL_POWER
+    antiderivative = p.integ()
+    s = np.clip(np.arange(-half_width - 1, half_width + 2) * dt_s / T, -1.0, 1.0)
+    raw = T * np.diff(antiderivative(s))
+    g_raw = (1.0 - (np.arange(-half_width, half_width + 1) * dt_s / T) ** 2) ** KERNEL_POWER
+    return np.asarray(raw / (g_raw.sum() * dt_s))
+
+
+def filter_held(values: np.ndarray, half_width: int, dt_s: float) -> np.ndarray:
+    """Values held over each period (``values[k]`` from sample ``k`` to ``k + 1``) through
+    the continuous default kernel, at the samples where the kernel fits (as
+    :func:`_convolve_valid`)."""
+    w = interval_weights(half_width, dt_s)            # j = −h … h + 1
+    v = np.concatenate([values[:1], values])           # v[−1] taken as v[0]
+    n = len(values)
+    out = np.zeros(n - 2 * half_width)
+    for j, weight in zip(range(-half_width, half_width + 2), w, strict=True):
+        # row n (from h to N − 1 − h) takes v[n − j], shifted by one for the padding
+        out += weight * v[half_width - j + 1: n - half_width - j + 1]
+    return out
+
+
 def _moment_correction(w: np.ndarray, g: np.ndarray, tau: np.ndarray, dt_s: float,
                        targets: list[float]) -> np.ndarray:
     """Correction ``c(τ)·g`` (c a polynomial) so that ``Σ w·τᵐ·Δt`` equals ``targets[m]``."""

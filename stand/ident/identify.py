@@ -7,21 +7,38 @@ no-load current of §5.1, 0 when not compensating). Eq. 10 gives::
 
 ``fit_percent`` is the equation-error fit of the acceleration row (the row that carries
 the physics; the first row is the kinematic identity θ' = ω).
+
+``effects='none'`` is exactly seed 000's model and least-squares solver (eq. 10). Any
+other choice adds effect regressors (:mod:`stand.ident.columns`, chosen by
+:mod:`stand.ident.select`) and, with the default derivatives, estimates by instrumental
+variables, so that current-sensor noise does not pull Kt/J towards zero. Every
+standard error and interval is the block sandwich of :mod:`stand.ident.estimate`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2
 
-from stand.errors import NotExcitedError
-from stand.ident.derivatives import state_derivatives
+from stand.diagnosis.model import ModelSpec
+from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare
+from stand.errors import InputError, NotExcitedError
+from stand.ident.checks import effect_params, run_warnings
+from stand.ident.columns import Design
+from stand.ident.derivatives import auto_half_width, state_derivatives
+from stand.ident.estimate import Estimate, block_count, solve_blocks
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
+from stand.ident.select import Fitter, parse_effects, select
 from stand.jsonable import JsonResult
 from stand.runfile import Run
+
+#: Estimators (:class:`stand.ident.select.Fitter`); ``auto`` picks ``bc`` or ``iv`` per run.
+ESTIMATORS: tuple[str, ...] = ("auto", "iv", "bc", "ls")
+#: Lag of the current instruments beyond the kernel's support, samples.
+INSTRUMENT_MARGIN = 1
 
 #: Blocks the current is split into to test that it varies beyond its noise.
 EXCITATION_BLOCKS = 20
@@ -31,7 +48,7 @@ EXCITATION_SIGNIFICANCE = 1e-3
 #: Largest relative standard error of Kt/J for which a run counts as exciting the model;
 #: beyond it the current carries no information distinguishable from noise (e.g. a
 #: constant current at a constant speed).
-MAX_RELATIVE_SE = 0.25
+MAX_RELATIVE_SE = 0.5
 
 
 @dataclass(frozen=True)
@@ -51,7 +68,8 @@ class IdentifyResult(JsonResult):
     C_over_J : float
         ``−A[1][0]``, 1/s².
     Kt_over_J_se, D_over_J_se, C_over_J_se : float
-        Standard errors (white equation error assumed; see :class:`QResult`).
+        Standard errors from the block sandwich (:mod:`stand.ident.estimate`): they hold
+        for residuals correlated over less than a block.
     fit_percent : float
         Equation-error fit of the acceleration row, %.
     condition_number : float
@@ -66,6 +84,21 @@ class IdentifyResult(JsonResult):
         Current subtracted from the measured current, A.
     half_width : int
         Half width of the default method's kernel, samples (0 for ``paper``).
+    Kt_over_J_ci95, D_over_J_ci95 : list of float
+        95 % intervals ``[low, high]`` (Student's t over the blocks), rad/(s²·A) and 1/s.
+    effects : list of str
+        Effects in the model (CONTRACT §3 names; empty for seed 000's model).
+    effect_params : dict
+        Each effect's parameters: torques as currents ``T/Kt`` (A), orders, phases (rad),
+        delays (samples), Stribeck velocity (rad/s).
+    warnings : list of str
+        What in the data limits the answer.
+    estimator : str
+        ``iv`` (instrumental variables), ``bc`` (bias-compensated least squares) or
+        ``ls`` (least squares).
+    current_timing_samples : float
+        Where the current is read relative to the encoder sample, samples (the delay
+        plus the interpolation weight).
     source : str
         The run identified (its file name).
     """
@@ -85,6 +118,13 @@ class IdentifyResult(JsonResult):
     dt_s: float
     no_load_current_A: float
     half_width: int
+    Kt_over_J_ci95: list[float]
+    D_over_J_ci95: list[float]
+    effects: list[str]
+    effect_params: dict[str, dict[str, float]]
+    warnings: list[str]
+    estimator: str
+    current_timing_samples: float
     source: str = ""
 
 
@@ -115,27 +155,45 @@ def _check_current_varies(current: np.ndarray, source: str) -> None:
 
 
 def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0.0,
-                 half_width: int | None = None) -> IdentifyResult:
-    """Identify A and B of one single-motor run by seed 000 eq. 10.
+                 half_width: int | None = None, effects: str = "auto",
+                 estimator: str | None = None) -> IdentifyResult:
+    """Identify A and B of one single-motor run by seed 000 eq. 10, with effects.
 
     Parameters
     ----------
     run : Run
         Single-motor run with ``position_rad`` and ``current_A``.
     method : {'default', 'paper'}
-        Derivatives: kernel filtering or the paper's forward Euler differences.
+        Derivatives: kernel filtering or the paper's forward Euler differences. ``paper``
+        is seed 000's model: it takes no effects (``auto`` then means ``none``).
     no_load_current_A : float
         No-load current subtracted from the measured current (§5.1), A.
     half_width : int or None
         Half width of the default kernel, samples; ``None`` (default) chooses it from the
         current's noise (:func:`~stand.ident.derivatives.auto_half_width`).
+    effects : str
+        ``auto`` (the data choose), ``none`` (seed 000's model), or comma-separated names
+        of :data:`~stand.ident.select.IDENT_EFFECTS`.
+    estimator : {'auto', 'iv', 'bc', 'ls'} or None
+        How current noise is kept from biasing Kt/J: instrumental variables, least
+        squares compensated for the noise's known contribution, or plain least squares
+        (the noise then pulls Kt/J towards zero). ``auto`` takes whichever of ``bc`` and
+        ``iv`` has the smaller error on this run (:func:`_pick_estimator`). ``None``:
+        ``auto`` with effects, ``ls`` for ``effects='none'`` (seed 000's solver).
 
     Raises
     ------
+    InputError
+        Unknown ``effects`` or ``estimator``, effects asked of the paper method.
     NotExcitedError
         The run does not determine the model.
     """
-    dt = run.dt_s
+    wanted = parse_effects(effects)
+    if estimator is not None and estimator not in ESTIMATORS:
+        raise InputError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
+    if method == "paper" and wanted:
+        raise InputError("effects: the paper method is seed 000's model and takes no effects; "
+                         "use --method default with --effects, or --effects none")
     position = run["position_rad"]
     if np.ptp(position) == 0:
         raise NotExcitedError(
@@ -144,25 +202,108 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
         )
     measured = run["current_A"]
     _check_current_varies(measured, run.source)
-    current = measured - no_load_current_A
-    states = state_derivatives(position, current, dt, method, half_width)
+    warnings: list[str] = []
+    short = len(measured) < MIN_DIAGNOSE_SAMPLES
+    if wanted is None and (method == "paper" or short):
+        if short:
+            warnings.append(f"{len(measured)} samples are too few to choose effects (at least "
+                            f"{MIN_DIAGNOSE_SAMPLES}): seed 000's model without effects")
+        wanted = []
+    if wanted == [] and estimator in (None, "ls"):
+        return _seed_model(run, method, no_load_current_A, half_width, warnings)
+    if short:
+        raise InputError(f"{run.source}: {len(measured)} samples; effects or the iv "
+                         f"estimator need at least {MIN_DIAGNOSE_SAMPLES}")
+    return _extended(run, no_load_current_A, half_width, wanted,
+                     estimator or "auto", warnings)
+
+
+def _seed_model(run: Run, method: str, no_load_current_A: float, half_width: int | None,
+                warnings: list[str]) -> IdentifyResult:
+    """Seed 000's model by least squares (eq. 10), with block-sandwich uncertainties."""
+    dt = run.dt_s
+    current = run["current_A"] - no_load_current_A
+    states = state_derivatives(run["position_rad"], current, dt, method, half_width)
     sums = QSums.zeros(2, 1).add(states.xdot, states.x, states.inputs, dt)
     try:
         q = solve(sums, names=["angle θ", "speed ω", "current i"])
     except NotExcitedError as exc:
         raise NotExcitedError(f"{run.source}: {exc}") from None
-    b2, b2_se = float(q.B[1, 0]), float(q.B_se[1, 0])
+    support = 2 * states.first + 1 if method == "default" else 3
+    X = np.column_stack([states.theta, states.omega, states.inputs[:, 0]])
+    est = solve_blocks(["theta", "omega", "current"], states.alpha, X, X,
+                       block_count(len(X), support), run.source)
+    warnings = warnings + run_warnings(run, est, [])
+    return _result(run, est, method, no_load_current_A,
+                   states.first if method == "default" else 0, [], {}, warnings, "ls", 0.0,
+                   A=q.A.tolist(), B=q.B.tolist())
+
+
+def _extended(run: Run, no_load_current_A: float, half_width: int | None,
+              wanted: list[str] | None, estimator: str, warnings: list[str]) -> IdentifyResult:
+    """The model with effects (or seed 000's, by iv), fitted on the kernel-filtered run."""
+    sig = prepare(run)
+    if no_load_current_A:
+        sig = replace(sig, current=sig.current - no_load_current_A, cache={})
+    sigma = noise_sigma(sig.current)
+    h = half_width or auto_half_width(sig.current, sigma)
+    design = Design.build(sig, h, 2 * h + 1 + INSTRUMENT_MARGIN)
+    first = "bc" if estimator == "auto" else estimator
+    chosen = select(Fitter(design, first, run.source), wanted)
+    est = chosen.estimate
+    if estimator == "auto":
+        estimator, est = _pick_estimator(design, chosen.spec, est, run.source)
+    params = effect_params(chosen.spec, chosen.effects, est)
+    warnings += run_warnings(run, est, chosen.notes)
+    timing = chosen.spec.delay + chosen.spec.input_weight
+    return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
+                   warnings, estimator, timing)
+
+
+def _pick_estimator(design: Design, spec: ModelSpec, bc: Estimate,
+                    source: str) -> tuple[str, Estimate]:
+    """``bc`` or ``iv`` for ``spec``, whichever has the smaller error of Kt/J.
+
+    The compensation of ``bc`` is as good as the noise variance it subtracts: its error
+    is the shift it makes (``bc`` less ``ls``) times the relative uncertainty of that
+    variance (:func:`~stand.ident.noise.noise_sigma_uncertainty`), added to its variance
+    (and to its reported covariance). ``iv`` has no such term, but weak instruments (a
+    current that decorrelates within the lag, as under a fast speed loop) widen it.
+    """
+    k = bc.names.index("current")
+    ls = Fitter(design, "ls", source).fit(spec)
+    shift = (bc.beta[k] - ls.beta[k]) * design.filtered_noise(spec.input_weight)[1]
+    cov = bc.cov.copy()
+    cov[k, k] += shift**2
+    bc = replace(bc, cov=cov)
+    try:
+        iv = Fitter(design, "iv", source).fit(spec)
+    except NotExcitedError:
+        return "bc", bc
+    return ("iv", iv) if iv.cov[k, k] < bc.cov[k, k] else ("bc", bc)
+
+
+def _result(run: Run, est: Estimate, method: str, no_load_current_A: float, half_width: int,
+            effects: list[str], params: dict[str, dict[str, float]], warnings: list[str],
+            estimator: str, timing: float, A: list[list[float]] | None = None,
+            B: list[list[float]] | None = None) -> IdentifyResult:
+    b2, b2_se = est.value("current"), float(est.se[est.names.index("current")])
     if not abs(b2) > MAX_RELATIVE_SE ** -1 * b2_se:
         raise NotExcitedError(
             f"{run.source}: Kt/J = {b2:.4g} ± {b2_se:.2g}: the run does not determine Kt/J "
             f"(relative standard error above {MAX_RELATIVE_SE:.0%}); excite the motor more "
             "(larger or faster command changes, a longer run) or use the default method"
         )
+    d, c = -est.value("omega"), -est.value("theta") if "theta" in est.names else 0.0
+    c_se = float(est.se[est.names.index("theta")]) if "theta" in est.names else 0.0
     return IdentifyResult(
-        A=q.A.tolist(), B=q.B.tolist(),
-        Kt_over_J=b2, D_over_J=-float(q.A[1, 1]), C_over_J=-float(q.A[1, 0]),
-        Kt_over_J_se=b2_se, D_over_J_se=float(q.A_se[1, 1]), C_over_J_se=float(q.A_se[1, 0]),
-        fit_percent=float(q.fit_percent[1]), condition_number=float(q.condition_number),
-        samples=int(q.samples), method=method, dt_s=dt, no_load_current_A=no_load_current_A,
-        half_width=states.first if method == "default" else 0, source=run.source,
+        A=A or [[0.0, 1.0], [-c, -d]], B=B or [[0.0], [b2]],
+        Kt_over_J=b2, D_over_J=d, C_over_J=c,
+        Kt_over_J_se=b2_se, D_over_J_se=float(est.se[est.names.index("omega")]),
+        C_over_J_se=c_se, fit_percent=est.fit_percent, condition_number=est.condition_number,
+        samples=est.samples, method=method, dt_s=run.dt_s, no_load_current_A=no_load_current_A,
+        half_width=half_width, Kt_over_J_ci95=est.interval("current"),
+        D_over_J_ci95=est.interval("omega", -1.0), effects=effects, effect_params=params,
+        warnings=warnings, estimator=estimator, current_timing_samples=timing,
+        source=run.source,
     )

@@ -6,6 +6,9 @@ import numpy as np
 
 #: Ratio of the standard deviation to the median absolute deviation of a normal variable.
 MAD_TO_SIGMA = 1.4826
+#: Least relative uncertainty of a noise variance read off a median absolute deviation
+#: (its sampling error over a few thousand samples is a few %).
+MIN_VARIANCE_UNCERTAINTY = 0.05
 
 
 def noise_sigma(signal: np.ndarray) -> float:
@@ -19,3 +22,21 @@ def noise_sigma(signal: np.ndarray) -> float:
     if d.size == 0:
         return 0.0
     return float(MAD_TO_SIGMA * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+
+
+
+def noise_variance_uncertainty(signal: np.ndarray) -> float:
+    """Relative uncertainty of ``noise_sigma(signal)**2``.
+
+    White noise gives the same variance from the first differences (each carrying
+    ``2σ²``) and from the second differences (``6σ²``); a signal that moves between
+    samples, or noise that is not white, makes them disagree. Returns their relative
+    difference, at least :data:`MIN_VARIANCE_UNCERTAINTY`.
+    """
+    x = np.asarray(signal, dtype=float)
+    first = noise_sigma(x)
+    d2 = np.diff(x, 2)
+    if d2.size == 0 or first == 0.0:
+        return 1.0
+    second = MAD_TO_SIGMA * float(np.median(np.abs(d2 - np.median(d2)))) / np.sqrt(6.0)
+    return max(MIN_VARIANCE_UNCERTAINTY, abs(first**2 - second**2) / first**2)

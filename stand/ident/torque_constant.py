@@ -10,9 +10,19 @@ standard deviation over the repeats (5 in the seed).
 
 No-load current (§5.1): a motor turning forward at no load draws a current that makes no
 acceleration (Coulomb friction ``Tc/Kt`` and viscous ``D·ω/Kt``). The model of eq. 2 has
-no constant term, so that current biases the estimates. Compensation subtracts the mean
-no-load current of the no-load repeats from the measured current of every run. The
-no-load current of one run is its current at zero acceleration (:func:`no_load_current`).
+no constant term, so that current biases the estimates. With ``effects='none'``,
+compensation subtracts the mean no-load current of the no-load repeats from the
+measured current of every run (:func:`no_load_current`: the current at zero
+acceleration). That is right only while the shaft turns one way. With effects (the
+default, ``auto``), every run is identified with the friction model of
+:mod:`stand.ident.select` instead: ``Tc·sign(ω)`` reverses with the shaft, and on a
+shaft that never reverses it is the constant §5.1 subtracts, fitted per run.
+
+Uncertainty: ``Kt_ci95`` is the mean of the pairs ± Student's t (repeats − 1 degrees of
+freedom) times the standard error of that mean. The standard deviation of one pair is
+the larger of the scatter over the pairs and the spread eq. 17 gets from each run's
+own interval (:func:`kt_std_from_runs`): two repeats that agree by chance do not make
+the answer more certain than its runs.
 """
 
 from __future__ import annotations
@@ -21,12 +31,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import t as student_t
 
+from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES
 from stand.errors import InputError
 from stand.ident.derivatives import state_derivatives
+from stand.ident.estimate import CONFIDENCE, MIN_BLOCKS
 from stand.ident.identify import IdentifyResult, identify_run
+from stand.ident.select import parse_effects
 from stand.jsonable import JsonResult
 from stand.runfile import Run
+
+#: Fewest repeats for a spread over the pairs worth reporting without a warning.
+MIN_REPEATS = 3
 
 
 @dataclass(frozen=True)
@@ -51,7 +68,8 @@ class TorqueConstantResult(JsonResult):
     no_load_current_A : float
         Mean no-load current of the no-load runs, A (subtracted when ``compensated``).
     compensated : bool
-        Whether the no-load current was subtracted (§5.1).
+        Whether the no-load current was accounted for: subtracted (§5.1, seed 000's
+        model) or held by each run's friction model (with effects).
     method : str
         Derivative method.
     Kt_repeats : list of float
@@ -62,6 +80,12 @@ class TorqueConstantResult(JsonResult):
         No-load current of each no-load run, A.
     added_inertia : float
         Disk inertia Ĵ, kg·m².
+    Kt_ci95, J_ci95 : list of float
+        95 % intervals ``[low, high]`` of Kt (N·m/A) and J (kg·m²).
+    effects : list of str
+        Effects in the model of any run (CONTRACT §3 names).
+    warnings : list of str
+        What limits the answer (too few repeats; each run's own warnings, named by run).
     """
 
     Kt: float
@@ -78,6 +102,10 @@ class TorqueConstantResult(JsonResult):
     Kt_over_J_loaded: list[float]
     no_load_current_repeats_A: list[float]
     added_inertia: float
+    Kt_ci95: list[float]
+    J_ci95: list[float]
+    effects: list[str]
+    warnings: list[str]
 
 
 def kt_from_pair(b2_no_load: float, b2_loaded: float, added_inertia: float) -> float:
@@ -102,9 +130,30 @@ def no_load_current(run: Run, method: str = "default",
     return float(i0)
 
 
+def kt_std_from_runs(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyResult],
+                     added_inertia: float) -> float:
+    """Standard deviation of one pair's Kt from the runs' own standard errors (eq. 17
+    to first order, mean over the pairs), N·m/A."""
+    spreads = []
+    for f, g in zip(free, loaded, strict=False):
+        bf, bl = f.Kt_over_J, g.Kt_over_J
+        dkdf = -bl * bl * added_inertia / (bf - bl) ** 2
+        dkdl = bf * bf * added_inertia / (bf - bl) ** 2
+        spreads.append(float(np.hypot(dkdf * f.Kt_over_J_se, dkdl * g.Kt_over_J_se)))
+    return float(np.mean(spreads))
+
+
+def _interval(values: np.ndarray, std: float, dof: int) -> list[float]:
+    """Mean of ``values`` ± t(dof)·std/√n."""
+    half = float(student_t.ppf(0.5 + CONFIDENCE / 2, dof)) * std / np.sqrt(len(values))
+    centre = float(np.mean(values))
+    return [centre - half, centre + half]
+
+
 def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
                     added_inertia: float, method: str = "default", compensate: bool = True,
-                    half_width: int | None = None) -> TorqueConstantResult:
+                    half_width: int | None = None, effects: str = "auto"
+                    ) -> TorqueConstantResult:
     """Kt, J, D, C from repeated no-load and added-inertia runs (eqs. 11-17, §5.1).
 
     Parameters
@@ -117,7 +166,11 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
     method : {'default', 'paper'}
         Derivative method (see :mod:`stand.ident.derivatives`).
     compensate : bool
-        Subtract the mean no-load current (§5.1).
+        Subtract the mean no-load current (§5.1); only with ``effects='none'`` (with
+        effects the friction model of each run holds that current).
+    effects : str
+        ``auto``, ``none`` or effect names, as for
+        :func:`~stand.ident.identify.identify_run` (the paper method takes none).
 
     Raises
     ------
@@ -138,11 +191,16 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
             f"got {n_free} no-load and {n_load} loaded runs; give equally many (paired in "
             "order) or one of either kind"
         )
+    shortest = min(len(r.time_s) for r in (*no_load_runs, *loaded_runs))
+    if effects == "auto" and (method == "paper" or shortest < MIN_DIAGNOSE_SAMPLES):
+        effects = "none"  # too short to choose effects: seed 000's model with §5.1
+    seed_model = parse_effects(effects) == []
     currents = [no_load_current(run, method, half_width) for run in no_load_runs]
     i_nl = float(np.mean(currents))
-    offset = i_nl if compensate else 0.0
-    free: list[IdentifyResult] = [identify_run(r, method, offset, half_width) for r in no_load_runs]
-    loaded = [identify_run(r, method, offset, half_width) for r in loaded_runs]
+    offset = i_nl if compensate and seed_model else 0.0
+    free: list[IdentifyResult] = [identify_run(r, method, offset, half_width, effects)
+                                  for r in no_load_runs]
+    loaded = [identify_run(r, method, offset, half_width, effects) for r in loaded_runs]
     b_free = np.array([f.Kt_over_J for f in free])
     b_load = np.array([f.Kt_over_J for f in loaded])
     if np.mean(b_free) <= np.mean(b_load):
@@ -152,23 +210,33 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
             "and that the disk was mounted"
         )
     pairs = np.broadcast_arrays(b_free, b_load) if repeats > 1 else (b_free, b_load)
-    kt = kt_from_pair(pairs[0], pairs[1], added_inertia)  # type: ignore[arg-type]
+    kt = np.atleast_1d(kt_from_pair(pairs[0], pairs[1], added_inertia))  # type: ignore[arg-type]
     kt_mean = float(np.mean(kt))
-    if repeats > 1:
-        kt_std = float(np.std(kt, ddof=1))
-    else:  # propagate the standard errors of b̂2, b̃2 through eq. 17
-        bf, bl = float(b_free[0]), float(b_load[0])
-        sf, sl = free[0].Kt_over_J_se, loaded[0].Kt_over_J_se
-        dkdf = -bl * bl * added_inertia / (bf - bl) ** 2
-        dkdl = bf * bf * added_inertia / (bf - bl) ** 2
-        kt_std = float(np.hypot(dkdf * sf, dkdl * sl))
+    own = kt_std_from_runs(free, loaded, added_inertia)
+    scatter = float(np.std(kt, ddof=1)) if repeats > 1 else 0.0
+    kt_std = max(scatter, own)
+    # One pair: the spread is the runs' own, with the fewest blocks' degrees of freedom.
+    dof = repeats - 1 if repeats > 1 else MIN_BLOCKS - 1
     J = kt_mean / float(np.mean(b_free))
+    J_pairs = kt / np.broadcast_to(b_free, kt.shape)
+    J_std = J * kt_std / kt_mean  # b̂2 is known far better than Kt
+    warnings = []
+    if repeats < MIN_REPEATS:
+        warnings.append(f"too few repeats: {repeats} pair(s); the interval of Kt rests on "
+                        f"{'the runs alone' if repeats == 1 else 'one degree of freedom'}; "
+                        f"record at least {MIN_REPEATS} (seed 000: 5)")
+    for label, runs, fits in (("no-load", no_load_runs, free), ("loaded", loaded_runs, loaded)):
+        for run, fit in zip(runs, fits, strict=True):
+            warnings += [f"{label} run {run.source}: {w}" for w in fit.warnings]
+    found = sorted({name for fit in (*free, *loaded) for name in fit.effects})
     return TorqueConstantResult(
         Kt=kt_mean, Kt_std=kt_std, J=J,
         D=J * float(np.mean([f.D_over_J for f in free])),
         C=J * float(np.mean([f.C_over_J for f in free])),
         repeats=repeats, no_load_current_A=i_nl, compensated=compensate, method=method,
-        Kt_repeats=[float(k) for k in np.atleast_1d(kt)],
+        Kt_repeats=[float(k) for k in kt],
         Kt_over_J_no_load=b_free.tolist(), Kt_over_J_loaded=b_load.tolist(),
         no_load_current_repeats_A=currents, added_inertia=added_inertia,
+        Kt_ci95=_interval(kt, kt_std, dof), J_ci95=_interval(J_pairs, J_std, dof),
+        effects=found, warnings=warnings,
     )

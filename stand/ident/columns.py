@@ -1,0 +1,212 @@
+"""Regressor and instrument columns of the identification model with effects.
+
+The model is seed 000's acceleration row with the effect regressors of the diagnosis
+(:class:`stand.diagnosis.model.ModelSpec`) as extra input columns::
+
+    θ'' = −(C/J)·θ − (D/J)·θ' + (Kt/J)·i(t + d) + Σ_j c_j·φ_j(θ, θ', i)
+
+The current over the period after sample ``n`` is ``(1 − w)·i[n + k] + w·i[n + k + 1]``
+(:func:`stand.diagnosis.model.interval_current`; ``k`` the delay, ``w`` the
+``input_weight``): ``w = 1`` for a drive that samples, then actuates, its current loop
+settling within the period on the value read at the next sample; ``w = 0.5`` for a
+current that varies smoothly (the period's mean); ``w = 0`` for a drive that actuates,
+then samples.
+
+Every column is passed through the same kernel as the angle
+(:mod:`stand.ident.derivatives`), so the filtered signals obey the same equation. A
+column held over each period (the current, the period means of ``sin Nθ``) goes through
+the continuous kernel period by period (:func:`~stand.ident.derivatives.filter_held`);
+the friction columns are period means too (of ``sign θ'`` at points within the period).
+
+Instruments. The measured current carries sensor noise; as a regressor it makes an
+errors-in-variables problem and least squares pulls Kt/J towards zero by the share of
+the filtered noise in the filtered current. Each column that holds the current has an
+instrument built the same way from ``½·(i(t − L) + i(t + L))``, with ``L`` longer than
+the kernel's support: white sensor noise at ``t ± L`` is independent of that at ``t``
+after filtering, while the current itself (driven by the command and the motion) is
+correlated across ``L``. Columns of the motion alone (θ, θ', sign θ', sin Nθ) are their
+own instruments: the encoder's quantization error is independent of the current noise,
+and the kernel's odd first and even second derivative leave the filtered velocity and
+acceleration noise uncorrelated at lag zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stand.diagnosis.model import (
+    ModelSpec,
+    interval_current,
+    periodic_mean,
+    shifted,
+    velocity_sign,
+)
+from stand.diagnosis.signals import Signals
+from stand.ident.derivatives import _convolve_valid, filter_held, interval_weights, kernel
+from stand.ident.noise import noise_sigma, noise_variance_uncertainty
+
+#: Points per sample period at which the friction columns are averaged.
+SUBSAMPLES = 8
+#: Columns that carry the measured current (and so need an instrument).
+CURRENT_COLUMNS = frozenset({"current", "rip_sin", "rip_cos"})
+
+
+def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
+    """``½·(v[n − lag] + v[n + lag])`` (edge values repeated), the instrument's current."""
+    if lag <= 0:
+        return values
+    padded = np.concatenate([np.repeat(values[:1], lag), values, np.repeat(values[-1:], lag)])
+    return 0.5 * (padded[:-2 * lag] + padded[2 * lag:])
+
+
+@dataclass
+class Design:
+    """A run prepared for the extended model: filtered motion and a column cache.
+
+    Attributes
+    ----------
+    sig : Signals
+        The run's signals (for the velocity sign and the filtered angle of the periodic
+        columns).
+    half_width : int
+        Kernel half width, samples.
+    lag : int
+        Lag of the current instruments, samples (0: least squares, no instruments).
+    theta, omega, alpha : ndarray
+        Kernel-filtered angle (rad), velocity (rad/s), acceleration (rad/s²) on the rows.
+    """
+
+    sig: Signals
+    half_width: int
+    lag: int
+    theta: np.ndarray
+    omega: np.ndarray
+    alpha: np.ndarray
+    cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def build(cls, sig: Signals, half_width: int, lag: int) -> Design:
+        """Filter the angle of ``sig`` with the kernel of ``half_width`` samples."""
+        g, g1, g2 = kernel(half_width, sig.dt_s)
+        theta, omega, alpha = (_convolve_valid(sig.theta, w, sig.dt_s) for w in (g, g1, g2))
+        return cls(sig, half_width, lag, theta, omega, alpha)
+
+    def filt(self, values: np.ndarray, held: bool = True) -> np.ndarray:
+        """``values`` through the kernel, on the rows of the design; ``held``: each value
+        holds over the period after its sample."""
+        if held:
+            return filter_held(values, self.half_width, self.sig.dt_s)
+        g, _, _ = kernel(self.half_width, self.sig.dt_s)
+        return _convolve_valid(values, g, self.sig.dt_s)
+
+    def current(self, spec: ModelSpec, instrument: bool) -> np.ndarray:
+        """Current at the model's timing, unfiltered (the lagged mean for the instrument)."""
+        i = interval_current(shifted(self.sig.current, spec.delay), spec.input_weight)
+        return lagged_mean(i, self.lag) if instrument else i
+
+    def column(self, spec: ModelSpec, name: str, instrument: bool = False) -> np.ndarray:
+        """Filtered input column ``name`` of ``spec`` (or its instrument), cached."""
+        instrument = instrument and name in CURRENT_COLUMNS and self.lag > 0
+        key = (name, instrument, spec.delay, spec.input_weight, spec.stribeck_ws,
+               spec.cogging_N if name.startswith("cog") else spec.ripple_N)
+        if key not in self.cache:
+            self.cache[key] = self.filt(self._raw(spec, name, instrument), True)
+        return self.cache[key]
+
+    def omega_within(self) -> np.ndarray:
+        """Velocity at ``SUBSAMPLES`` midpoints of each period, linear between the
+        samples of the run's filtered velocity, rad/s, shape (samples, SUBSAMPLES)."""
+        omega = self.sig.omega_f
+        following = np.concatenate([omega[1:], omega[-1:]])
+        share = (np.arange(SUBSAMPLES) + 0.5) / SUBSAMPLES
+        return np.asarray(omega[:, None] * (1 - share) + following[:, None] * share)
+
+    def _raw(self, spec: ModelSpec, name: str, instrument: bool) -> np.ndarray:
+        sig = self.sig
+        if name == "current":
+            return self.current(spec, instrument)
+        if name == "one":
+            return np.ones(len(sig))
+        if name in ("sign", "stribeck"):
+            # Period means: the friction torque changes sign within the period of a
+            # reversal, in proportion to the time spent on either side.
+            omega = self.omega_within()
+            column = velocity_sign(omega, sig)
+            if name == "stribeck":
+                column = column * np.exp(-((omega / (spec.stribeck_ws or 1.0)) ** 2))
+            return np.asarray(column.mean(axis=1))
+        order = (spec.cogging_N if name.startswith("cog") else spec.ripple_N) or 0
+        step = np.concatenate([np.diff(sig.theta_f), [0.0]])
+        s, c = periodic_mean(order, sig.theta_f, step)
+        periodic = s if name.endswith("sin") else c
+        if name.startswith("rip"):
+            return self.current(spec, instrument) * periodic
+        return periodic
+
+    def filtered_noise(self, weight: float = 0.5) -> tuple[float, float]:
+        """Variance of the current noise after the kernel (A²) and its relative uncertainty.
+
+        White noise of the standard deviation the sample-to-sample differences give
+        (:func:`~stand.ident.noise.noise_sigma`) keeps ``σ²·Σ e²`` after the kernel, with
+        ``e`` the weight of each sample in the held current of ``input_weight`` ``weight``.
+        Its uncertainty is the disagreement of first and second differences
+        (:func:`~stand.ident.noise.noise_variance_uncertainty`): large when the noise is
+        coloured or the current moves between samples.
+        """
+        weights = interval_weights(self.half_width, self.sig.dt_s)
+        w = weight
+        per_sample = (1 - w) * np.concatenate([[0.0], weights]) + w * np.concatenate([weights, [0.0]])
+        sigma = noise_sigma(self.sig.current)
+        return (sigma**2 * float(np.sum(per_sample**2)),
+                noise_variance_uncertainty(self.sig.current))
+
+    def noise_gram(self, spec: ModelSpec, names: list[str], rows: slice) -> np.ndarray:
+        """What the current noise adds to ``XᵀX`` of ``matrices(spec, False)``.
+
+        The noise of a current column ``j`` is ``g ∗ (n·m_j)`` with ``m_j`` its multiplier
+        (1, or the ripple's ``sin Nθ``/``cos Nθ``); summed over the rows, the product of
+        two such columns has the mean ``var(g ∗ n)·Σ m_j·m_l`` (:meth:`filtered_noise`).
+        Bias-compensated least squares subtracts it.
+        """
+        gain, _ = self.filtered_noise(spec.input_weight)
+        ones = np.ones(len(self.sig))
+        multipliers: dict[str, np.ndarray] = {}
+        for name in names:
+            if name == "current":
+                multipliers[name] = ones
+            elif name in ("rip_sin", "rip_cos"):
+                step = np.concatenate([np.diff(self.sig.theta_f), [0.0]])
+                s, c = periodic_mean(spec.ripple_N or 0, self.sig.theta_f, step)
+                multipliers[name] = s if name == "rip_sin" else c
+        h = self.half_width
+        out = np.zeros((len(names), len(names)))
+        for j, a in enumerate(names):
+            for k, b in enumerate(names):
+                if a in multipliers and b in multipliers:
+                    product = (multipliers[a] * multipliers[b])[h:len(self.sig) - h][rows]
+                    out[j, k] = gain * float(np.sum(product))
+        return out
+
+    def rows(self, spec: ModelSpec, instrumented: bool = True) -> slice:
+        """Rows of ``matrices(spec, instrumented)`` within the filtered signals."""
+        lag = self.lag if instrumented else 0
+        return slice(lag, len(self.alpha) - max(lag, spec.delay))
+
+    def matrices(self, spec: ModelSpec, instrumented: bool = True
+                 ) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+        """Names, output ``y = θ''``, regressors ``X`` and instruments ``Z`` of ``spec``.
+
+        The columns are ``θ`` (only with ``spec.spring``), ``θ'``, then the inputs of
+        ``spec.names()``; rows within ``lag`` of either end (where the instrument is
+        padded) and the delay's last samples are dropped. Not ``instrumented``: ``Z = X``
+        on every row.
+        """
+        names = (["theta"] if spec.spring else []) + ["omega"] + spec.names()
+        motion = {"theta": self.theta, "omega": self.omega}
+        X = np.column_stack([motion[n] if n in motion else self.column(spec, n) for n in names])
+        Z = X if not (instrumented and self.lag) else np.column_stack(
+            [motion[n] if n in motion else self.column(spec, n, True) for n in names])
+        keep = self.rows(spec, instrumented)
+        return names, self.alpha[keep], X[keep], Z[keep]

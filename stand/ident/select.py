@@ -1,0 +1,259 @@
+"""Which effects the identification model holds: chosen by the data or named.
+
+``auto`` grows the model greedily. Each round fits every effect not yet in the model
+(an effect with a hyper-parameter, e.g. the cogging order, at each value of its grid,
+keeping the value with the least held-out equation error,
+:func:`stand.ident.estimate.solve_blocks`, leave-one-block-out) and keeps those whose
+added coefficients are significantly non-zero: a Wald test with the block-sandwich
+covariance (right for residuals coloured within a block), at ``SELECT_ALPHA`` after a
+Bonferroni factor for the grid searched (a delay adds no column: it must lower the
+held-out error, by a paired t test over the blocks). Of those it takes the one of least
+held-out error, and stops when none passes. The models are nested and linear in their
+coefficients, so the Wald test is the textbook one; the held-out error only ranks.
+
+The timing of the current relative to the encoder (:data:`INPUT_WEIGHTS`, parts of a
+sample period) is part of the nominal model, picked first by the least held-out error:
+how a drive samples and actuates is not an effect of the motor.
+
+On a shaft that never reverses, ``sign(θ')`` is a constant: Coulomb friction and a
+current offset are one column, offered as ``coulomb_friction`` (its torque then holds
+any offset) and named in a warning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import f as f_dist
+from scipy.stats import t as student_t
+
+from stand.diagnosis.model import ModelSpec
+from stand.errors import InputError, NotExcitedError
+from stand.ident.columns import Design
+from stand.ident.estimate import Estimate, block_count, solve_blocks
+
+#: Effects the identification model can hold (CONTRACT §3 vocabulary, backlash aside:
+#: a load behind a gap is a second inertia, not a term of the one-inertia model).
+IDENT_EFFECTS: tuple[str, ...] = ("coulomb_friction", "stribeck_friction", "cogging",
+                                  "current_offset", "delay", "torque_ripple")
+#: One-sided level of the paired test that admits an effect.
+SELECT_ALPHA = 1e-3
+#: Timings of the current tried for the nominal model: the current at ``t + w·Δt``.
+INPUT_WEIGHTS: tuple[float, ...] = (0.0, 0.5, 1.0)
+#: Largest delay tried, samples.
+MAX_DELAY = 6
+#: Highest cogging / ripple order tried, cycles per revolution.
+MAX_ORDER = 48
+#: Stribeck velocities tried, as fractions of the run's top speed.
+STRIBECK_FRACTIONS = tuple(float(f) for f in np.geomspace(0.02, 0.5, 9))
+#: Least share of samples in the rarer direction for the shaft to count as reversing.
+MIN_REVERSE_SHARE = 0.02
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The chosen model and its estimate.
+
+    Attributes
+    ----------
+    spec : ModelSpec
+        The model's structure.
+    effects : list of str
+        Its effects, in the order they were admitted (or named).
+    estimate : Estimate
+        Its coefficients and their covariance.
+    notes : list of str
+        What the selection had to decide for the data (for the warnings).
+    """
+
+    spec: ModelSpec
+    effects: list[str]
+    estimate: Estimate
+    notes: list[str]
+
+
+def reverses(design: Design) -> bool:
+    """Whether the shaft turns both ways for at least ``MIN_REVERSE_SHARE`` of the run."""
+    sign = np.sign(design.sig.omega_f)
+    moving = max(1, int(np.count_nonzero(sign)))
+    return min(np.sum(sign > 0), np.sum(sign < 0)) >= MIN_REVERSE_SHARE * moving
+
+
+def parse_effects(text: str) -> list[str] | None:
+    """``auto`` → ``None``; ``none`` → ``[]``; ``A,B`` → the names, checked.
+
+    Raises
+    ------
+    InputError
+        An unknown name, or ``none``/``auto`` mixed with names.
+    """
+    words = [w.strip() for w in text.split(",") if w.strip()]
+    if words == ["auto"]:
+        return None
+    if words == ["none"]:
+        return []
+    bad = [w for w in words if w not in IDENT_EFFECTS]
+    if bad or not words:
+        raise InputError(
+            f"effects: {', '.join(bad) or repr(text)} not understood; expected 'auto', 'none' "
+            f"or a comma-separated list of {', '.join(IDENT_EFFECTS)}")
+    return list(dict.fromkeys(words))
+
+
+class Fitter:
+    """Fits specs on one design by one estimator, with the blocks fixed for every model.
+
+    Parameters
+    ----------
+    design : Design
+        The run prepared for the extended model.
+    estimator : {'iv', 'bc', 'ls'}
+        Instrumental variables, bias-compensated least squares (the filtered current
+        noise of :meth:`Design.filtered_noise` subtracted), or least squares.
+    """
+
+    def __init__(self, design: Design, estimator: str, source: str = "run") -> None:
+        self.design = design
+        self.estimator = estimator
+        self.source = source
+        lag = design.lag if estimator == "iv" else 0
+        self.blocks = block_count(len(design.alpha) - 2 * lag, 2 * design.half_width + 1)
+
+    def fit(self, spec: ModelSpec) -> Estimate:
+        """Fit ``spec``."""
+        iv = self.estimator == "iv"
+        names, y, X, Z = self.design.matrices(spec, iv)
+        noise = None
+        if self.estimator == "bc":
+            noise = self.design.noise_gram(spec, names, self.design.rows(spec, False))
+        return solve_blocks(names, y, X, Z, self.blocks, self.source, noise)
+
+    def best(self, specs: list[ModelSpec]) -> tuple[ModelSpec, Estimate] | None:
+        """The spec of least total held-out error (``None`` if none can be fitted)."""
+        found: tuple[ModelSpec, Estimate] | None = None
+        for spec in specs:
+            try:
+                est = self.fit(spec)
+            except NotExcitedError:
+                continue
+            if found is None or est.cv_sse.sum() < found[1].cv_sse.sum():
+                found = (spec, est)
+        return found
+
+
+def _candidates(design: Design, spec: ModelSpec, name: str) -> list[ModelSpec]:
+    """``spec`` with effect ``name`` added, at every value of its grid."""
+    if name == "coulomb_friction":
+        return [replace(spec, coulomb=True)]
+    if name == "current_offset":
+        return [replace(spec, offset=True)]
+    if name == "stribeck_friction":
+        top = max(design.sig.top_speed, np.finfo(float).tiny)
+        return [replace(spec, stribeck_ws=f * top) for f in STRIBECK_FRACTIONS]
+    if name == "delay":
+        return [replace(spec, delay=k) for k in range(1, MAX_DELAY + 1)]
+    if name == "cogging":
+        return [replace(spec, cogging_N=n) for n in range(1, MAX_ORDER + 1)]
+    return [replace(spec, ripple_N=n) for n in range(1, MAX_ORDER + 1)]
+
+
+def _significant(base: Estimate, cand: Estimate, tried: int) -> float:
+    """p value of the Wald test that the columns ``cand`` adds to ``base`` are zero.
+
+    The statistic ``βᵀ·V⁻¹·β/m`` of the ``m`` added coefficients, with their block-sandwich
+    covariance ``V``, is taken as F(m, blocks − 1) distributed (Hotelling's statistic for
+    a covariance estimated from the blocks). ``tried`` grid values were searched for the
+    best one; the p value is multiplied by it (Bonferroni).
+    """
+    added = [k for k, name in enumerate(cand.names) if name not in base.names]
+    if not added:
+        return 1.0
+    beta = cand.beta[added]
+    cov = cand.cov[np.ix_(added, added)]
+    try:
+        stat = float(beta @ np.linalg.solve(cov, beta)) / len(added)
+    except np.linalg.LinAlgError:
+        return 1.0
+    dof = cand.dof
+    if dof <= len(added) - 1 or not np.isfinite(stat):
+        return 1.0
+    # Hotelling T² with m columns and dof degrees of freedom, as an F(m, dof − m + 1).
+    m = len(added)
+    f = stat * (dof - m + 1) / dof
+    return min(1.0, tried * float(f_dist.sf(f, m, dof - m + 1)))
+
+
+def _held_out_better(base: Estimate, cand: Estimate, tried: int) -> float:
+    """p value of the paired test that ``cand`` lowers the held-out error of ``base``.
+
+    For an effect that adds no column (a delay moves the current column): a one-sided
+    t test over the blocks of the log ratio of their held-out errors (blocks differ in
+    excitation by orders of magnitude; the ratio weighs each alike), times ``tried``.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.log(base.cv_sse / cand.cv_sse)
+    if not np.all(np.isfinite(d)):
+        return 1.0
+    spread = float(np.std(d, ddof=1))
+    if spread == 0.0:
+        return 0.0 if d.mean() > 0 else 1.0
+    t = float(d.mean()) / (spread / np.sqrt(len(d)))
+    return min(1.0, tried * float(student_t.sf(t, len(d) - 1)))
+
+
+def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False) -> Selection:
+    """Choose (``wanted`` is ``None``) or fit the named effects with ``fitter``.
+
+    Parameters
+    ----------
+    fitter : Fitter
+        The run and the estimator.
+    wanted : list of str or None
+        Effects to fit; ``None`` lets the data choose among :data:`IDENT_EFFECTS`.
+    spring : bool
+        Keep seed 000's ``C·θ`` term. Off by default: a motor on a stand has no spring,
+        and on a shaft that turns one way the angle is a ramp that the term uses to
+        absorb slow drifts (and extrapolates badly to a held-out block).
+    """
+    design, source = fitter.design, fitter.source
+    notes: list[str] = []
+    reversing = reverses(design)
+    pool = [e for e in (IDENT_EFFECTS if wanted is None else wanted)
+            if reversing or e != "current_offset"]
+    if not reversing and (wanted is None or {"coulomb_friction", "current_offset"} & set(wanted)):
+        notes.append("never_reverses")
+        if wanted is not None and "current_offset" in wanted and "coulomb_friction" not in pool:
+            pool.append("coulomb_friction")
+    nominal = fitter.best([ModelSpec(input_weight=w, spring=spring) for w in INPUT_WEIGHTS])
+    if nominal is None:
+        raise NotExcitedError(f"{source}: the nominal model cannot be fitted: the data do not "
+                              "excite it; excite the motor with a varying command")
+    spec, est = nominal
+    chosen: list[str] = []
+    if wanted is not None:
+        for name in pool:
+            found = fitter.best(_candidates(design, spec, name))
+            if found is None:
+                raise NotExcitedError(f"{source}: effect {name} cannot be fitted together with "
+                                      f"{', '.join(chosen) or 'the nominal model'}: the data do "
+                                      "not separate it")
+            spec, est = found
+            chosen.append(name)
+        return Selection(spec, chosen, est, notes)
+    while True:
+        best: tuple[str, ModelSpec, Estimate] | None = None
+        for name in pool:
+            if name in chosen or (name == "coulomb_friction" and spec.stribeck_ws is not None):
+                continue  # a Stribeck model already holds a Coulomb level
+            grid = _candidates(design, spec, name)
+            found = fitter.best(grid)
+            test = _held_out_better if name == "delay" else _significant
+            if found is None or test(est, found[1], len(grid)) > SELECT_ALPHA:
+                continue
+            if best is None or found[1].cv_sse.sum() < best[2].cv_sse.sum():
+                best = (name, *found)
+        if best is None:
+            return Selection(spec, chosen, est, notes)
+        chosen.append(best[0])
+        spec, est = best[1], best[2]

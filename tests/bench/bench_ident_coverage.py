@@ -1,0 +1,234 @@
+"""Bias and interval coverage of ``stand identify`` on random simulated stands.
+
+Each case draws a motor (J 5e-6…5e-4 kg·m², Kt 0.02…0.2 N·m/A, J/D 0.05…2 s), a sample
+period of 1–5 ms, a drive mode with reversing excitation (current mode: PRBS currents
+of ± the drive level; speed mode: reversing PRBS speed steps under a PI loop of 2–40 Hz),
+an encoder, current noise of 0.5–5 % of the drive level, and one effect set: none,
+each identifiable effect of the vocabulary alone, and every pair (cycled by case
+index). The run is written to CSV and read back; ``identify_run`` sees only that.
+
+Figures: share of cases with Kt/J within 2 % of the truth, share whose 95 % interval
+holds the truth (overall, per effect, per mode), the estimators picked, and, for speed
+mode, the error against ``π·f_loop·Δt`` (the inertial current a loop faster than the
+sampling hides between samples, :mod:`docs/results/ident.md`).
+
+    python tests/bench/bench_ident_coverage.py --cases 110 --seed 1 --workers 2
+    python tests/bench/bench_ident_coverage.py --kt --stands 20 --seed 1   # 5 + 5 repeats
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stand.errors import StandError
+from stand.excitation import excitation
+from stand.ident.identify import identify_run
+from stand.ident.select import IDENT_EFFECTS
+from stand.ident.torque_constant import torque_constant
+from stand.physics.effects import Effects
+from stand.physics.parts import DriveParams, MotorParams, SensorParams
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
+from stand.runfile import read_run, write_run
+
+#: Effect sets cycled over the cases: none, each alone, each pair.
+EFFECT_SETS: list[tuple[str, ...]] = [(), *((e,) for e in IDENT_EFFECTS),
+                                      *itertools.combinations(IDENT_EFFECTS, 2)]
+RUN_DURATION_S = 6.0
+ENCODER_LINES = (500, 1000, 2000, 2500, 4096, 5000)
+
+
+def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
+    return float(math.exp(rng.uniform(math.log(low), math.log(high))))
+
+
+def draw_stand(rng: np.random.Generator, mode: str | None = None) -> dict[str, Any]:
+    """A motor, drive, sensors and reversing excitation (no effects)."""
+    J = _log_uniform(rng, 5e-6, 5e-4)
+    Kt = _log_uniform(rng, 0.02, 0.2)
+    motor = MotorParams(R=_log_uniform(rng, 0.5, 5.0), L=_log_uniform(rng, 2e-4, 3e-3), Kt=Kt,
+                        J=J, D=J / _log_uniform(rng, 0.05, 2.0))
+    dt = float(rng.uniform(1e-3, 5e-3))
+    mode = mode or ("current" if rng.random() < 0.6 else "speed")
+    omega_ref = min(_log_uniform(rng, 20.0, 200.0), 0.4 * 48.0 / Kt)
+    hold_s = _log_uniform(rng, 0.02, 0.3) if mode == "current" else _log_uniform(rng, 0.1, 0.5)
+    current_ref = J * omega_ref / (Kt * hold_s) + motor.D * omega_ref / Kt
+    loop_hz = _log_uniform(rng, 2.0, 40.0)
+    kp = 2 * math.pi * loop_hz * J / Kt
+    drive = DriveParams(mode=mode, supply_V=48.0, current_limit_A=20.0 * current_ref,  # type: ignore[arg-type]
+                        current_tau_s=2e-4, speed_kp=kp, speed_ki=kp * 2 * math.pi * loop_hz / 5)
+    sensors = SensorParams(encoder_lines=int(rng.choice(ENCODER_LINES)),
+                           current_noise_A=_log_uniform(rng, 0.005, 0.05) * current_ref)
+    return {"motor": motor, "drive": drive, "sensors": sensors, "mode": mode, "dt": dt,
+            "hold": max(1, int(round(hold_s / dt))), "loop_hz": loop_hz,
+            "level": current_ref if mode == "current" else omega_ref, "current_ref": current_ref,
+            "omega_ref": omega_ref}
+
+
+def draw_effect(name: str, rng: np.random.Generator, stand: dict[str, Any]) -> dict[str, float]:
+    """Parameters of effect ``name`` at 3–30 % of the drive torque."""
+    torque = stand["motor"].Kt * stand["current_ref"]
+    strength = _log_uniform(rng, 0.03, 0.3)
+    order_max = 24
+    if name == "coulomb_friction":
+        return {"Tc": strength * torque}
+    if name == "stribeck_friction":
+        Ts = strength * torque
+        return {"Tc": Ts * rng.uniform(0.2, 0.6), "Ts": Ts,
+                "ws": stand["omega_ref"] * _log_uniform(rng, 0.03, 0.3)}
+    if name == "cogging":
+        return {"Tcog": strength * torque, "N": int(rng.integers(2, order_max + 1)),
+                "phi": rng.uniform(0, 2 * math.pi)}
+    if name == "current_offset":
+        return {"i0": strength * stand["current_ref"] * float(rng.choice([-1.0, 1.0]))}
+    if name == "delay":
+        return {"k": int(rng.integers(1, 5))}
+    return {"eps": _log_uniform(rng, 0.03, 0.3), "N": int(rng.integers(2, order_max + 1)),
+            "phi": rng.uniform(0, 2 * math.pi)}
+
+
+def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: int,
+             added_inertia: float = 0.0, folder: Path | None = None) -> Any:
+    """One run of ``stand``, written as CSV and read back."""
+    motor = stand["motor"]
+    if added_inertia:
+        motor = MotorParams(R=motor.R, L=motor.L, Kt=motor.Kt, J=motor.J + added_inertia,
+                            D=motor.D)
+    plant = MotorPlant(motor, stand["drive"], stand["sensors"], Effects.from_mapping(effects),
+                       seed=seed)
+    samples = int(round(RUN_DURATION_S / stand["dt"]))
+    command = excitation("prbs", samples, stand["dt"], 0.0, stand["level"], stand["hold"],
+                         seed=seed)
+    run = simulate_motor(plant, stand["mode"], command, stand["dt"])
+    with tempfile.TemporaryDirectory(prefix="ident-bench-") as tmp:
+        path = write_run(Path(folder or tmp) / f"run{seed}.csv",
+                         {c: run[c] for c in ("time_s", "current_A", "position_rad")})
+        return read_run(path, "single")
+
+
+def run_case(index: int, seed: int) -> dict[str, Any]:
+    """Draw, simulate and identify case ``index``; score Kt/J and its interval."""
+    rng = np.random.default_rng([seed, index])
+    stand = draw_stand(rng)
+    names = EFFECT_SETS[index % len(EFFECT_SETS)]
+    effects = {name: draw_effect(name, rng, stand) for name in names}
+    run = simulate(stand, effects, seed * 100_003 + index)
+    truth = stand["motor"].Kt / stand["motor"].J
+    row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
+                           "dt_s": stand["dt"], "loop_hz": stand["loop_hz"]}
+    start = time.perf_counter()
+    try:
+        r = identify_run(run)
+    except StandError as exc:
+        return {**row, "error": str(exc), "seconds": time.perf_counter() - start}
+    low, high = r.Kt_over_J_ci95
+    return {**row, "seconds": time.perf_counter() - start,
+            "error_rel": r.Kt_over_J / truth - 1.0, "covered": bool(low <= truth <= high),
+            "half_width_rel": (high - low) / 2 / truth, "found": r.effects,
+            "estimator": r.estimator, "warnings": r.warnings}
+
+
+def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Within-2 % share and coverage, overall, per effect and per mode."""
+    ok = [r for r in rows if "error_rel" in r]
+
+    def figures(part: list[dict[str, Any]]) -> dict[str, Any]:
+        if not part:
+            return {"cases": 0}
+        err = np.array([abs(r["error_rel"]) for r in part])
+        return {"cases": len(part), "within_2pct": float(np.mean(err <= 0.02)),
+                "coverage": float(np.mean([r["covered"] for r in part])),
+                "median_abs_error": float(np.median(err)),
+                "median_half_width": float(np.median([r["half_width_rel"] for r in part]))}
+
+    per_effect: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for r in ok:
+        for name in r["truth_effects"] or ["none"]:
+            per_effect[name].append(r)
+    speed = [r for r in ok if r["mode"] == "speed"]
+    hidden = [r["error_rel"] - math.pi * r["loop_hz"] * r["dt_s"] for r in speed]
+    return {
+        "cases": len(rows), "refused": len(rows) - len(ok), "all": figures(ok),
+        "per_mode": {m: figures([r for r in ok if r["mode"] == m]) for m in ("current", "speed")},
+        "per_effect": {k: figures(v) for k, v in sorted(per_effect.items())},
+        "estimators": {e: sum(r["estimator"] == e for r in ok) for e in ("bc", "iv", "ls")},
+        "speed_error_less_pi_f_dt_median": float(np.median(hidden)) if hidden else None,
+        "median_seconds": float(np.median([r["seconds"] for r in rows])),
+    }
+
+
+def run_kt_case(index: int, seed: int) -> dict[str, Any]:
+    """Torque constant from 5 + 5 repeats on one random stand with one random effect."""
+    rng = np.random.default_rng([seed, index, 1])
+    stand = draw_stand(rng)
+    names = EFFECT_SETS[index % (1 + len(IDENT_EFFECTS))]
+    effects = {name: draw_effect(name, rng, stand) for name in names}
+    added = stand["motor"].J * _log_uniform(rng, 0.5, 2.0)
+    base = seed * 100_003 + 1000 * index
+    free = [simulate(stand, effects, base + k) for k in range(5)]
+    loaded = [simulate(stand, effects, base + 10 + k, added) for k in range(5)]
+    row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
+                           "dt_s": stand["dt"]}
+    try:
+        r = torque_constant(free, loaded, added)
+    except StandError as exc:
+        return {**row, "error": str(exc)}
+    low, high = r.Kt_ci95
+    truth = stand["motor"].Kt
+    return {**row, "error_rel": r.Kt / truth - 1.0, "covered": bool(low <= truth <= high),
+            "half_width_rel": (high - low) / 2 / truth, "warnings": r.warnings}
+
+
+def _pool_map(function: Any, jobs: list[tuple[int, int]], workers: int) -> list[dict[str, Any]]:
+    if workers <= 1:
+        return [function(*job) for job in jobs]
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        return list(pool.starmap(function, jobs, chunksize=1))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=110)
+    parser.add_argument("--stands", type=int, default=20, help="stands of the --kt part")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--kt", action="store_true", help="torque constant, 5 + 5 repeats")
+    parser.add_argument("--rows", type=Path, help="write every case as JSON lines here")
+    args = parser.parse_args(argv)
+    if args.kt:
+        rows = _pool_map(run_kt_case, [(k, args.seed) for k in range(args.stands)], args.workers)
+        ok = [r for r in rows if "error_rel" in r]
+        err = np.array([abs(r["error_rel"]) for r in ok])
+        summary: dict[str, Any] = {
+            "stands": len(rows), "refused": len(rows) - len(ok),
+            "within_1pct": float(np.mean(err <= 0.01)) if ok else None,
+            "coverage": float(np.mean([r["covered"] for r in ok])) if ok else None,
+            "median_abs_error": float(np.median(err)) if ok else None,
+            "per_mode": {m: float(np.mean([abs(r["error_rel"]) <= 0.01 for r in ok
+                                           if r["mode"] == m] or [np.nan]))
+                         for m in ("current", "speed")}}
+    else:
+        rows = _pool_map(run_case, [(k, args.seed) for k in range(args.cases)], args.workers)
+        summary = summarize(rows)
+    if args.rows:
+        args.rows.write_text("".join(json.dumps(r, default=str) + "\n" for r in rows))
+    json.dump(summary, sys.stdout, indent=1)
+    print()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
