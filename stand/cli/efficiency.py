@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import logging
 from typing import Any
 
 from stand import EfficiencyResult, efficiency, read_run
 from stand.cli import options
+
+LOG = logging.getLogger(__name__)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,7 +24,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> EfficiencyResult:
-    return efficiency(read_run(args.run, "reducer"), args.ratio, args.k_in, args.k_out)
+    result = efficiency(read_run(args.run, "reducer"), args.ratio, args.k_in, args.k_out)
+    if not args.json:  # human mode: the warnings on stderr, beside the summary
+        for text in result.warnings:
+            LOG.warning("warning: %s", text)
+    return result
 
 
 def summarize(result: dict[str, Any]) -> str:

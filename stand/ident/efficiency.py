@@ -15,13 +15,23 @@ transient after a step does not enter. Each step gives one η; the result is the
 Its uncertainty is the larger of (a) the standard errors of the plateau means propagated
 through eq. 18 to first order (adjacent steps share a plateau, so their errors correlate)
 and (b) the standard error of the mean over the steps (which also sees slow drifts).
+``efficiency_ci95`` is the mean ± Student's t with steps − 1 degrees of freedom times it
+when (b) dominates, the normal quantile when (a) does (it rests on thousands of samples).
+
+Friction on each shaft: eq. 18 holds because Coulomb and viscous friction are the same
+on both plateaus of a step at one speed, and cancel in ``Δi``. Where the input shaft
+turns the other way (or stands) on one side of a step, the friction of both shafts
+changes sign with it and ``Δi`` holds twice its torque: such steps are left out, and a
+warning says how many.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import norm
+from scipy.stats import t as student_t
 
 from stand.errors import InputError, NotExcitedError
 from stand.ident.noise import noise_sigma
@@ -36,6 +46,10 @@ STEP_THRESHOLD_SIGMA = 12.0
 SETTLE_FRACTION = 0.25
 #: Fewest samples in a plateau to take its level.
 MIN_PLATEAU_SAMPLES = 8
+#: Fewest load steps for a spread over the steps worth reporting without a warning.
+MIN_STEPS = 3
+#: Two-sided confidence level of ``efficiency_ci95``.
+CONFIDENCE = 0.95
 
 
 @dataclass(frozen=True)
@@ -61,6 +75,10 @@ class EfficiencyResult(JsonResult):
         Inputs: reduction ratio, torque constants of the input and output motors (N·m/A).
     source : str
         The run analysed (its file name).
+    efficiency_ci95 : list of float
+        95 % interval ``[low, high]`` of ``efficiency``.
+    warnings : list of str
+        What limits the answer (few steps, steps left out at a reversal).
     """
 
     efficiency: float
@@ -74,6 +92,8 @@ class EfficiencyResult(JsonResult):
     k_in: float
     k_out: float
     source: str = ""
+    efficiency_ci95: list[float] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
 
 def find_steps(signal: np.ndarray, window: int = DETECTOR_SAMPLES) -> np.ndarray:
@@ -143,17 +163,32 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
     level_in, se_in = np.array([_level(i_in[p]) for p in plateaus]).T
     level_out, se_out = np.array([_level(i_out[p]) for p in plateaus]).T
     step_in, step_out = np.diff(level_in), np.diff(level_out)
-    if np.any(step_in == 0):
+    direction = np.array([_direction(run["position_in_rad"][p]) for p in plateaus])
+    kept = np.flatnonzero((direction[:-1] == direction[1:]) & (direction[1:] != 0))
+    warnings: list[str] = []
+    if len(kept) < len(step_in):
+        warnings.append(
+            f"{len(step_in) - len(kept)} of {len(step_in)} load step(s) left out: the input "
+            "shaft turns the other way or stands on one side, so the friction of both shafts "
+            "changes with it and does not cancel in eq. 18")
+    if kept.size == 0:
+        raise NotExcitedError(f"{run.source}: no load step with the input turning the same way "
+                              "on both sides; hold the input speed constant across the steps")
+    if np.any(step_in[kept] == 0):
         raise NotExcitedError(f"{run.source}: the input current did not change at a load step")
     di_in, di_out = np.abs(step_in), np.abs(step_out)
-    etas = k_out * di_out / (ratio * k_in * di_in)
+    etas_all = k_out * di_out / (ratio * k_in * np.where(di_in == 0, np.inf, di_in))
+    etas = etas_all[kept]
     m = len(etas)
+    if m < MIN_STEPS:
+        warnings.append(f"few load steps: {m}; the spread over the steps rests on "
+                        f"{max(m - 1, 0)} degree(s) of freedom; apply at least {MIN_STEPS}")
     # Propagate the plateau-mean errors to the mean η exactly to first order: adjacent steps
     # share a plateau, so their errors are correlated.
-    grad_in, grad_out = np.zeros(m + 1), np.zeros(m + 1)
-    for k in range(m):
-        d_in = -etas[k] / di_in[k] * np.sign(step_in[k]) / m     # ∂η̄/∂(L_in[k+1] − L_in[k])
-        d_out = etas[k] / di_out[k] * np.sign(step_out[k]) / m
+    grad_in, grad_out = np.zeros(len(plateaus)), np.zeros(len(plateaus))
+    for k in kept:
+        d_in = -etas_all[k] / di_in[k] * np.sign(step_in[k]) / m  # ∂η̄/∂(L_in[k+1] − L_in[k])
+        d_out = etas_all[k] / di_out[k] * np.sign(step_out[k]) / m
         grad_in[k + 1] += d_in
         grad_in[k] -= d_in
         grad_out[k + 1] += d_out
@@ -161,10 +196,20 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
     propagated = float(np.sqrt(np.sum((grad_in * se_in) ** 2 + (grad_out * se_out) ** 2)))
     scatter = float(np.std(etas, ddof=1) / np.sqrt(m)) if m > 1 else 0.0
     std = max(propagated, scatter)
+    quantile = (float(student_t.ppf(0.5 + CONFIDENCE / 2, m - 1)) if scatter > propagated
+                else float(norm.ppf(0.5 + CONFIDENCE / 2)))
+    eta = float(np.mean(etas))
     return EfficiencyResult(
-        efficiency=float(np.mean(etas)), efficiency_std=std,
-        delta_i_in_A=float(np.mean(di_in)), delta_i_out_A=float(np.mean(di_out)), steps=m,
-        step_times_s=[float(run.time_s[s]) for s in steps],
+        efficiency=eta, efficiency_std=std,
+        delta_i_in_A=float(np.mean(di_in[kept])), delta_i_out_A=float(np.mean(di_out[kept])),
+        steps=m, step_times_s=[float(run.time_s[steps[k]]) for k in kept],
         efficiency_steps=[float(e) for e in etas], ratio=ratio, k_in=k_in, k_out=k_out,
-        source=run.source,
+        source=run.source, efficiency_ci95=[eta - quantile * std, eta + quantile * std],
+        warnings=warnings,
     )
+
+
+def _direction(position: np.ndarray) -> int:
+    """Sign of the travel over the settled part of a plateau (0: no travel)."""
+    settled = position[int(np.ceil(SETTLE_FRACTION * len(position))):]
+    return int(np.sign(settled[-1] - settled[0])) if len(settled) > 1 else 0
