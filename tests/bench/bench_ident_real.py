@@ -85,8 +85,9 @@ def emps() -> None:
                                                   ("none", "none", None, None)):
         _row("DATA_EMPS", run, label, effects, estimator, half_width)
     r = identify_run(run)
-    print("\nauto: M = {:.3f} kg [{:.3f}, {:.3f}]; effect parameters {}".format(
-        1 / r.Kt_over_J, 1 / r.Kt_over_J_ci95[1], 1 / r.Kt_over_J_ci95[0], r.effect_params))
+    low, high = 1 / r.Kt_over_J_ci95[1], 1 / r.Kt_over_J_ci95[0]
+    print(f"\nauto: M = {1 / r.Kt_over_J:.3f} kg [{low:.3f}, {high:.3f}]; "
+          f"effect parameters {r.effect_params}")
 
 
 def main(argv: list[str]) -> int:
