@@ -194,6 +194,9 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
     if method == "paper" and wanted:
         raise InputError("effects: the paper method is seed 000's model and takes no effects; "
                          "use --method default with --effects, or --effects none")
+    if method == "paper" and estimator not in (None, "ls"):
+        raise InputError(f"estimator: the paper method is seed 000's least squares, not "
+                         f"{estimator!r}; use --method default for the other estimators")
     position = run["position_rad"]
     if np.ptp(position) == 0:
         raise NotExcitedError(
