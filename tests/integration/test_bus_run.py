@@ -52,7 +52,10 @@ def test_stand_run_identifies_like_direct_simulation(can_config: BusConfig, tmp_
     (procedure, _), = plan(experiment)
     direct = simulate_procedure(procedure, load_motor("crouzet_82800502"), seed=SEED)
     over_bus = read_run(run["path"])
-    a, b = identify_run(direct), identify_run(over_bus)
+    # Seed 000's model: a smooth function of the data. With effects chosen by the data
+    # (the default), a count or a milliampere may tip a test the other way on this
+    # forward-only run and move the weakly determined D/J by more than 1 %.
+    a, b = identify_run(direct, effects="none"), identify_run(over_bus, effects="none")
     for name in ("Kt_over_J", "D_over_J"):
         assert getattr(b, name) == pytest.approx(getattr(a, name), rel=SAME_PARAMETERS_RTOL), name
     assert np.max(np.abs(over_bus["position_rad"] - direct["position_rad"])) <= ONE_COUNT_RAD * 1.01
