@@ -84,7 +84,7 @@ def test_rows_are_the_commands_json_and_a_bad_file_is_one_error_row(fleet: Path)
     row = result.rows[0]
     assert row["error"] == ""
     for name, value in first.items():  # the same call: the same numbers, bit for bit
-        assert row[name] == (json.dumps(value) if isinstance(value, list) else value), name
+        assert row[name] == (json.dumps(value) if isinstance(value, (list, dict)) else value), name
 
 
 def test_pooled_sums_of_one_run_give_that_runs_estimate(fleet: Path) -> None:
@@ -92,10 +92,12 @@ def test_pooled_sums_of_one_run_give_that_runs_estimate(fleet: Path) -> None:
     # run must give its own estimate, to rounding (the same sums, solved the same way).
     path = fleet / "crouzet" / "run_001.csv"
     result = run_batch("identify", [str(path)], workers=0)
-    single = stand.identify(stand.read_run(path))
+    # Pooling is of seed 000's sums: compare seed 000's model (effects none). Its standard
+    # errors are the block sandwich there and white-noise ones in the pool, so not compared.
+    single = stand.identify(stand.read_run(path), effects="none")
     pooled = result.fleets[0].pooled
     assert pooled is not None and pooled["samples"] == single.samples
-    for name in ("Kt_over_J", "D_over_J", "C_over_J", "Kt_over_J_se", "fit_percent"):
+    for name in ("Kt_over_J", "D_over_J", "C_over_J", "fit_percent"):
         assert_allclose(pooled[name], getattr(single, name), rtol=1e-12, err_msg=name)
     assert result.fleets[0].std is None and "two results" in result.fleets[0].message
 
