@@ -42,7 +42,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("stand.cli.run", "run an experiment profile over the CAN bus"),
     "serve": ("stand.cli.serve", "start the HTTP service"),
     "demo": ("stand.cli.demo", "run the whole simulated stand on the virtual bus"),
-    "bench": ("stand.cli.bench", "benchmarks that print figures"),
     "batch": ("stand.cli.batch", "one operation over many runs, on Dask (files, globs, stored runs)"),
 }
 

@@ -5,10 +5,11 @@ its gap on HOLDOUT, says where it lies, scores every effect of the vocabulary as
 extension, and names the one (or the few) that explain the gap, or ``none``.
 
 Modules: :mod:`.signals` (derived signals), :mod:`.model` (regressors and Q-matrix fit),
-:mod:`.simulate` (re-anchored free run), :mod:`.candidates` (effects as extensions),
-:mod:`.significance` (noise-aware test), :mod:`.where` (residual analysis),
+:mod:`.simulate` (re-anchored free run), :mod:`.candidates` (effects as extensions, by
+name), :mod:`.significance` (noise-aware test), :mod:`.where` (residual analysis),
 :mod:`.engine` (the procedure), :mod:`.report` (result objects), :mod:`.plots`
-(figures), :mod:`.benchmark` (blind benchmark on simulated stands).
+(figures). Each effect's model, search and checks live in :mod:`stand.effects`; the blind
+benchmark on simulated stands lives outside the package, in ``tests/bench/diagnose/``.
 """
 
 from stand.diagnosis.engine import diagnose

@@ -8,14 +8,16 @@
    hyper-parameters and identify it on TRAIN, simulate it on HOLDOUT: its gap, shrink,
    and a paired per-segment test of the improvement (:mod:`.significance`).
    A candidate counts only when the same search on HOLDOUT finds the same effect
-   again (same order or delay, similar size: :func:`.candidates.agree`). A delay on a
-   TRAIN run whose current is one frequency is picked across the two runs instead
-   (``_Bench.delay_across``): TRAIN alone cannot resolve it there.
-4. Take the significant candidate with the smallest gap (Stribeck friction, which
-   nests Coulomb friction, wins over it when it is significant itself, i.e. when both
-   runs resolve its static excess, unless Coulomb friction simulates HOLDOUT
-   significantly better); then
-   add further effects greedily while an addition still improves HOLDOUT significantly.
+   again (same order or delay, similar size: each effect's ``agree``). An effect that
+   a TRAIN run of one frequency cannot resolve (a delay) is picked across the two runs
+   there instead (``_Bench.across``).
+4. Take the significant candidate with the smallest gap (an effect that nests it, as
+   Stribeck friction nests Coulomb friction, wins over it when it is significant
+   itself, i.e. when both runs resolve what it adds, unless the nested effect simulates
+   HOLDOUT significantly better); then add further effects greedily while an addition
+   still improves HOLDOUT significantly.
+
+The effects and everything effect-specific come from the registry (:mod:`stand.effects`).
 """
 
 from __future__ import annotations
@@ -27,14 +29,14 @@ from functools import cache, cached_property
 
 import numpy as np
 
-from stand.diagnosis import candidates
-from stand.diagnosis.candidates import NO_FIT
+from stand import effects
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
 from stand.diagnosis.report import Diagnosis, EffectScore
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import MIN_SHRINK, PairedTest, paired_improvement
 from stand.diagnosis.simulate import Segments, segments, simulate
 from stand.diagnosis.where import locate
+from stand.effects.base import NO_FIT, Effect
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run
 
@@ -44,16 +46,6 @@ ANCHOR_HORIZON_S = 0.1
 MIN_SEGMENTS = 12
 #: Most effects combined in a verdict.
 MAX_EFFECTS = 3
-#: Effects whose consistency is checked by re-fitting TRAIN's model structure (its
-#: Stribeck velocity) on HOLDOUT and comparing the sizes, rather than by searching
-#: HOLDOUT afresh: ωs has a flat optimum (it trades against the static excess), so a
-#: fresh search can land elsewhere for a real effect. (Orders N of cogging and ripple
-#: are searched afresh: a coincidental order of TRAIN re-fitted on HOLDOUT can keep
-#: its size by fitting another coincidence there.)
-REFIT_EFFECTS: frozenset[str] = frozenset({"stribeck_friction"})
-#: Effects whose hyper-parameters are picked by simulating the run they are searched
-#: on, not by its equation error (:func:`.candidates.search`).
-SIMULATED_SEARCHES: frozenset[str] = frozenset({"backlash"})
 #: Input reconstructions tried for the nominal model (see ``ModelSpec.input_weight``).
 INPUT_WEIGHTS: tuple[float, ...] = (0.5, 0.625, 0.75, 0.875, 1.0)
 #: Halvings of the weight step around the best grid weight (to 1/64 of a period).
@@ -87,7 +79,12 @@ class _Bench:
             raise NotExcitedError(f"{holdout.source}: the speed never varies; nothing to compare")
 
     def score(self, spec: ModelSpec) -> _Scored:
-        model = fit(spec, self.train)
+        """``spec`` identified on TRAIN, simulated on HOLDOUT."""
+        return self.score_model(fit(spec, self.train))
+
+    def score_model(self, model: FittedModel) -> _Scored:
+        """``model`` simulated on HOLDOUT: its error, gap and per-segment squared errors."""
+        spec = model.spec
         error = simulate(model, self.holdout, self.seg) - self.measured
         error = np.where(np.isfinite(error), error, 1e6 * self.scale)
         error = np.clip(error, -1e6 * self.scale, 1e6 * self.scale)
@@ -106,31 +103,34 @@ class _Bench:
         """The same runs the other way round: identified on HOLDOUT, scored on TRAIN."""
         return _Bench(self.holdout, self.train, self.horizon_s)
 
-    def candidate(self, effect: str, base: _Scored) -> _Scored:
-        """``base`` plus ``effect``, identified on TRAIN, scored on HOLDOUT, and checked
-        for consistency: the same search on HOLDOUT must find the same effect."""
-        if effect == "delay" and self.tone_hz is not None:
-            return self.delay_across(base)
-        spec = candidates.search(effect, base.spec, self.train,
-                                 self.simulated(effect, self.train))
+    def candidate(self, name: str, base: _Scored) -> _Scored:
+        """``base`` plus effect ``name``, identified on TRAIN, scored on HOLDOUT, and
+        checked for consistency: the same search on HOLDOUT must find the same effect
+        (or, for an effect whose TRAIN structure is re-fitted there, the same sizes: a
+        hyper-parameter with a flat optimum, such as the Stribeck velocity, can land
+        elsewhere in a fresh search for a real effect)."""
+        effect = effects.get(name)
+        if effect.across_runs_on_one_tone and self.tone_hz is not None:
+            return self.across(effect, base)
+        spec = effect.search(base.spec, self.train, self.simulated(effect, self.train))
         if spec == NO_FIT:
             return replace(base, spec=NO_FIT, consistent=False)
         scored = self.score(spec)
-        if effect in REFIT_EFFECTS:
+        if effect.refit_on_holdout:
             again = spec
         else:
-            again = candidates.search(effect, base.spec, self.holdout,
-                                      self.simulated(effect, self.holdout))
+            again = effect.search(base.spec, self.holdout, self.simulated(effect, self.holdout))
             if again == NO_FIT:
                 return scored
-        consistent = candidates.agree(effect, scored.model, fit(again, self.holdout))
+        consistent = effect.agree(scored.model, fit(again, self.holdout))
         return replace(scored, consistent=consistent)
 
-    def simulated(self, effect: str, sig: Signals) -> Callable[[ModelSpec], float] | None:
-        """For the effects whose search picks by simulation (``SIMULATED_SEARCHES``), a
-        spec's gap when identified on ``sig`` and simulated on ``sig`` itself (TRAIN or
-        HOLDOUT: each run's search stays within that run); else None."""
-        if effect not in SIMULATED_SEARCHES:
+    def simulated(self, effect: type[Effect], sig: Signals
+                  ) -> Callable[[ModelSpec], float] | None:
+        """For an effect whose search picks by simulation, a spec's gap when identified
+        on ``sig`` and simulated on ``sig`` itself (TRAIN or HOLDOUT: each run's search
+        stays within that run); else None."""
+        if not effect.picked_by_simulation:
             return None
         on_itself = self.on_train if sig is self.train else self.reverse.on_train
         return cache(lambda spec: on_itself.score(spec).gap)
@@ -140,35 +140,77 @@ class _Bench:
         """TRAIN against itself: identified and simulated on TRAIN."""
         return _Bench(self.train, self.train, self.horizon_s)
 
-    def delay_across(self, base: _Scored) -> _Scored:
-        """``base`` plus a delay, when TRAIN's current is one frequency.
+    def across(self, effect: type[Effect], base: _Scored) -> _Scored:
+        """``base`` plus ``effect`` (a delay), when TRAIN's current is one frequency.
 
         There a delay is a phase lag of the current, which ``Kt/J`` and ``D/J`` absorb:
         every delay fits TRAIN alike, each with its own ``Kt/J`` and ``D/J``, and
         simulates another frequency differently. Two runs at different frequencies
-        resolve it together, as two-fold cross-validation: each delay of
-        :func:`.candidates.delay_grid` is fitted on TRAIN and simulated on HOLDOUT, and
-        fitted on HOLDOUT and simulated on TRAIN. The candidate is the delay that
-        simulates HOLDOUT best, unless that is the grid's unbracketed end (no fit). It
-        is consistent when the delay that simulates TRAIN best is the same within
-        ``DELAY_TOLERANCE_SAMPLES``, bracketed too, and shrinks TRAIN's gap of the
-        base model fitted on HOLDOUT by ``MIN_SHRINK`` at least. Having been picked on
-        HOLDOUT, its holdout test pays for the grid (``looks``).
+        resolve it together, as two-fold cross-validation: each spec of the effect's
+        ``grid`` is fitted on TRAIN and simulated on HOLDOUT, and fitted on HOLDOUT and
+        simulated on TRAIN. The candidate is the spec that simulates HOLDOUT best,
+        unless that is the grid's unbracketed end (no fit). It is consistent when the
+        spec that simulates TRAIN best is the same within the effect's resolution
+        (``same``), bracketed too, and shrinks TRAIN's gap of the base model fitted on
+        HOLDOUT by ``MIN_SHRINK`` at least. Having been picked on HOLDOUT, its holdout
+        test pays for the grid (``looks``).
         """
-        grid = candidates.delay_grid(base.spec)
+        grid = effect.grid(base.spec)
         forward = [self.score(spec) for spec in grid]
         reverse = self.reverse
         backward = [reverse.score(spec).gap for spec in grid]
         ahead = int(np.argmin([s.gap for s in forward]))
         back = int(np.argmin(backward))
-        top = candidates.MAX_DELAY_SAMPLES
-        if grid[ahead].delay > top:
+        if not effect.bracketed(grid[ahead]):
             return replace(base, spec=NO_FIT, consistent=False)
-        consistent = (grid[back].delay <= top
-                      and abs(grid[ahead].delay - grid[back].delay)
-                      <= candidates.DELAY_TOLERANCE_SAMPLES
+        consistent = (effect.bracketed(grid[back])
+                      and effect.same(grid[ahead], grid[back])
                       and backward[back] <= (1.0 - MIN_SHRINK) * reverse.score(base.spec).gap)
         return replace(forward[ahead], consistent=consistent, looks=len(grid))
+
+
+@dataclass(frozen=True)
+class HoldoutComparison:
+    """Two models simulated on HOLDOUT as the diagnosis simulates its candidates.
+
+    Attributes
+    ----------
+    nominal_gap_percent, gap_percent : float
+        Holdout gaps (CONTRACT §3) of the nominal model and of the other model, %.
+    test : PairedTest
+        The diagnosis' paired per-segment test of the other model against the nominal
+        one (no correction for the number of candidates).
+    """
+
+    nominal_gap_percent: float
+    gap_percent: float
+    test: PairedTest
+
+
+def compare_on_holdout(train: Run, holdout: Run,
+                       model_of: Callable[[ModelSpec, Signals], FittedModel],
+                       horizon_s: float = ANCHOR_HORIZON_S) -> HoldoutComparison:
+    """The diagnosis' nominal model against another model, on HOLDOUT.
+
+    The nominal model is the one :func:`diagnose` identifies on TRAIN (its input
+    reconstruction picked the same way); ``model_of(nominal_spec, train_signals)``
+    gives the other, built on the same nominal structure. Both are simulated on
+    HOLDOUT with the same re-anchored segments and compared with the same paired test
+    as the diagnosis' candidates. A benchmark uses it to ask whether a model it knows
+    to be true (the planted effects at their true parameters) is visible at all.
+
+    Raises
+    ------
+    InputError
+        Runs too short for a holdout test.
+    """
+    tr, ho = prepare(train), prepare(holdout)
+    bench = _Bench(tr, ho, horizon_s)
+    base_spec = _nominal_spec(bench.on_train, False)
+    nominal = bench.score(base_spec)
+    other = bench.score_model(model_of(base_spec, tr))
+    return HoldoutComparison(nominal_gap_percent=nominal.gap, gap_percent=other.gap,
+                             test=paired_improvement(nominal.sse, other.sse))
 
 
 @dataclass(frozen=True)
@@ -253,7 +295,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         )
     bench = _Bench(tr, ho, horizon_s)
     base = bench.score(_nominal_spec(bench.on_train, spring))
-    singles = {name: bench.candidate(name, base) for name in candidates.EFFECTS}
+    singles = {name: bench.candidate(name, base) for name in effects.EFFECTS}
     n_tests = len(singles)
     scores = []
     for name, s in singles.items():
@@ -261,11 +303,11 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         scores.append(EffectScore(
             effect=name, gap_percent=s.gap, shrink=1.0 - s.gap / base.gap,
             significant=s.consistent and test.significant(n_tests),
-            params=candidates.params(name, s.model, kt) if s.spec != NO_FIT else {},
+            params=effects.get(name).params(s.model, kt) if s.spec != NO_FIT else {},
             p_value=test.p_value, consistent=s.consistent))
     scores.sort(key=lambda e: e.gap_percent)
     chosen, final = _select(bench, base, singles, {e.effect: e for e in scores}, max_effects)
-    verdict = "+".join(chosen) if chosen else "none"
+    verdict = "+".join(chosen) if chosen else effects.NONE
     floor = _noise_floor(ho, bench.scale)
     message = (f"gap {base.gap:.1f} % (quantization floor {floor:.1f} %); verdict {verdict}"
                + (f", gap with it {final.gap:.1f} %" if chosen else ""))
@@ -277,7 +319,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     return Diagnosis(
         gap_percent=base.gap, where=locate(residual, ho),
         effects=scores, verdict=verdict, verdict_gap_percent=final.gap,
-        verdict_params={name: candidates.params(name, final.model, kt) for name in chosen},
+        verdict_params={name: effects.get(name).params(final.model, kt) for name in chosen},
         nominal=_nominal_dict(base.model, kt),
         anchoring={"method": "re-anchored every horizon_s: filtered position one sample "
                              "before each segment, speed shot through the next measured "
@@ -294,24 +336,26 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     if not significant:
         return [], base
     first = min(significant, key=lambda n: singles[n].gap)
-    if (first == "coulomb_friction" and "stribeck_friction" in significant
-            and not _improvement(singles["stribeck_friction"], singles[first]).significant(1)):
-        # Stribeck nests Coulomb friction; it is significant only when both runs resolve
-        # its static excess (candidates.agree), which is what makes it count, unless
-        # Coulomb friction alone simulates HOLDOUT significantly better
-        first = "stribeck_friction"
+    for outer in effects.nested_in(first):
+        # an effect that nests the first (Stribeck friction holds a Coulomb level) is
+        # significant only when both runs resolve what it adds (its agree), which is
+        # what makes it count, unless the nested effect alone simulates HOLDOUT
+        # significantly better
+        if (outer in significant
+                and not _improvement(singles[outer], singles[first]).significant(1)):
+            first = outer
+            break
     chosen, current = [first], singles[first]
     while len(chosen) < max_effects:
-        remaining = [n for n in candidates.EFFECTS if n not in chosen
-                     and not (n == "coulomb_friction" and "stribeck_friction" in chosen)]
+        remaining = [n for n in effects.EFFECTS if n not in chosen
+                     and not set(effects.nested_in(n)) & set(chosen)]
         trials = {n: bench.candidate(n, current) for n in remaining}
         passed = {n: s for n, s in trials.items() if s.consistent
                   and _improvement(current, s).significant(len(trials))}
         if not passed:
             break
         best = min(passed, key=lambda n: passed[n].gap)
-        if best == "stribeck_friction" and "coulomb_friction" in chosen:
-            chosen.remove("coulomb_friction")
+        chosen = [n for n in chosen if n not in effects.get(best).nests]
         chosen.append(best)
         current = passed[best]
     return chosen, current
@@ -320,13 +364,12 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
 def _improvement(base: _Scored, cand: _Scored) -> PairedTest:
     """The paired holdout test of ``cand`` against ``base``.
 
-    A backlash candidate is tested on the simulated speed alone: its regressor, the
-    load acceleration of the kinematic load estimate, is built from the measured motion
-    itself (it equals the measured acceleration while in contact), so its equation
-    error on HOLDOUT is an errors-in-variables fit that "improves" with any inertia
-    mismatch between the runs, not only with a dead zone.
+    A candidate that adds an effect tested on the speed alone (``speed_test_only``: a
+    backlash, whose load-acceleration regressor is built from the measured motion
+    itself) is tested on the simulated speed alone.
     """
-    if cand.spec.backlash_gap is not None and base.spec.backlash_gap is None:
+    if any(e.speed_test_only and e.present(cand.spec) and not e.present(base.spec)
+           for e in effects.all_effects()):
         test = paired_improvement(base.sse[:1], cand.sse[:1])
     else:
         test = paired_improvement(base.sse, cand.sse)

@@ -1,8 +1,9 @@
 """The effect vocabulary of CONTRACT §3 as switchable physics.
 
-Each effect is a small frozen dataclass whose fields are its parameters in SI units;
-:class:`Effects` holds at most one of each. ``Effects.from_mapping`` builds one from
-plain data (a profile, the command line, JSON) and names the bad field when it fails.
+Each effect is a small frozen dataclass whose fields are its parameters in SI units, one
+module each in :mod:`stand.effects`; :class:`Effects` holds at most one of each.
+``Effects.from_mapping`` builds one from plain data (a profile, the command line, JSON)
+and names the bad field when it fails.
 """
 
 from __future__ import annotations
@@ -13,115 +14,22 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from stand.effects import NONE, all_effects
+from stand.effects.backlash import Backlash
+from stand.effects.base import Effect
+from stand.effects.cogging import Cogging
+from stand.effects.coulomb_friction import CoulombFriction
+from stand.effects.current_offset import CurrentOffset
+from stand.effects.delay import Delay
+from stand.effects.stribeck_friction import StribeckFriction
+from stand.effects.torque_ripple import TorqueRipple
 from stand.errors import InputError
 
-
-@dataclass(frozen=True)
-class CoulombFriction:
-    """Torque ``Tc·sign(ω)`` opposing motion.
-
-    Parameters
-    ----------
-    Tc : float
-        Coulomb friction torque, N·m (>= 0).
-    """
-
-    Tc: float
-
-
-@dataclass(frozen=True)
-class StribeckFriction:
-    """``(Tc + (Ts − Tc)·exp(−(ω/ωs)²))·sign(ω)`` with ``Ts > Tc``.
-
-    Parameters
-    ----------
-    Tc : float
-        Coulomb level, N·m.
-    Ts : float
-        Static (breakaway) level, N·m, greater than ``Tc``.
-    ws : float
-        Stribeck velocity, rad/s (> 0).
-    """
-
-    Tc: float
-    Ts: float
-    ws: float
-
-
-@dataclass(frozen=True)
-class Cogging:
-    """Torque ``Tcog·sin(N·θ + φ)``, independent of current.
-
-    Parameters
-    ----------
-    Tcog : float
-        Amplitude, N·m.
-    N : int
-        Cycles per revolution.
-    phi : float
-        Phase, rad.
-    """
-
-    Tcog: float
-    N: int
-    phi: float = 0.0
-
-
-@dataclass(frozen=True)
-class CurrentOffset:
-    """Measured current = true current + ``i0`` (A)."""
-
-    i0: float
-
-
-@dataclass(frozen=True)
-class Delay:
-    """Current samples lag the encoder samples by ``k`` sample periods."""
-
-    k: int
-
-
-@dataclass(frozen=True)
-class Backlash:
-    """Dead zone of ± ``gap`` rad between the motor shaft and a load inertia.
-
-    Parameters
-    ----------
-    gap : float
-        Half width of the dead zone, rad.
-    J_load : float
-        Inertia of the load behind the dead zone, kg·m².
-    stiffness : float
-        Contact stiffness, N·m/rad; 0 picks one with a 150 Hz contact mode.
-    """
-
-    gap: float
-    J_load: float
-    stiffness: float = 0.0
-
-
-@dataclass(frozen=True)
-class TorqueRipple:
-    """Torque ``Kt·i·(1 + ε·sin(N·θ + φ))``."""
-
-    eps: float
-    N: int
-    phi: float = 0.0
-
-
-#: Vocabulary name (CONTRACT §3) to the class that models it.
-EFFECT_TYPES: dict[str, type] = {
-    "coulomb_friction": CoulombFriction,
-    "stribeck_friction": StribeckFriction,
-    "cogging": Cogging,
-    "current_offset": CurrentOffset,
-    "delay": Delay,
-    "backlash": Backlash,
-    "torque_ripple": TorqueRipple,
-}
+#: Vocabulary name (CONTRACT §3) to the class that models it (:mod:`stand.effects`).
+EFFECT_TYPES: dict[str, type[Effect]] = {effect.name: effect for effect in all_effects()}
 
 #: Every name of the vocabulary, ``none`` first.
-VOCABULARY: tuple[str, ...] = ("none", *EFFECT_TYPES)
+VOCABULARY: tuple[str, ...] = (NONE, *EFFECT_TYPES)
 
 
 @dataclass(frozen=True)
@@ -139,7 +47,12 @@ class Effects:
     def names(self) -> list[str]:
         """Names of the effects present, in vocabulary order (``["none"]`` if none)."""
         present = [f.name for f in dataclasses.fields(self) if getattr(self, f.name)]
-        return present or ["none"]
+        return present or [NONE]
+
+    def present(self) -> list[Effect]:
+        """The effects present, in vocabulary order."""
+        return [getattr(self, f.name) for f in dataclasses.fields(self)
+                if getattr(self, f.name) is not None]
 
     def to_mapping(self) -> dict[str, dict[str, float]]:
         """Plain data: effect name to its parameters."""
@@ -163,7 +76,7 @@ class Effects:
             return cls()
         built: dict[str, Any] = {}
         for name, params in data.items():
-            if name == "none":
+            if name == NONE:
                 continue
             if name not in EFFECT_TYPES:
                 raise InputError(
@@ -173,7 +86,7 @@ class Effects:
         return cls(**built)
 
 
-def _build(kind: type, params: Mapping[str, Any], where: str) -> Any:
+def _build(kind: type[Effect], params: Mapping[str, Any], where: str) -> Effect:
     fields = {f.name: f for f in dataclasses.fields(kind)}
     unknown = set(params) - set(fields)
     if unknown:
@@ -199,26 +112,9 @@ def _build(kind: type, params: Mapping[str, Any], where: str) -> Any:
             raise InputError(f"{where}.{name}: {value:g} is not a whole number")
         values[name] = int(round(value)) if field.type in ("int", int) else value
     effect = kind(**values)
-    _check_physics(effect, where)
+    effect.check(where)
     return effect
 
 
-def _check_physics(effect: Any, where: str) -> None:
-    def need(condition: bool, text: str) -> None:
-        if not condition:
-            raise InputError(f"{where}: {text}")
-
-    if isinstance(effect, CoulombFriction):
-        need(effect.Tc >= 0, f"Tc must be >= 0 N·m, got {effect.Tc}")
-    elif isinstance(effect, StribeckFriction):
-        need(effect.Tc >= 0, f"Tc must be >= 0 N·m, got {effect.Tc}")
-        need(effect.Ts > effect.Tc, f"Ts must exceed Tc, got Ts={effect.Ts}, Tc={effect.Tc}")
-        need(effect.ws > 0, f"ws must be > 0 rad/s, got {effect.ws}")
-    elif isinstance(effect, (Cogging, TorqueRipple)):
-        need(effect.N >= 1, f"N must be a whole number >= 1 cycle/rev, got {effect.N}")
-    elif isinstance(effect, Delay):
-        need(effect.k >= 0, f"k must be a whole number >= 0 samples, got {effect.k}")
-    elif isinstance(effect, Backlash):
-        need(effect.gap >= 0, f"gap must be >= 0 rad, got {effect.gap}")
-        need(effect.J_load > 0, f"J_load must be > 0 kg·m², got {effect.J_load}")
-        need(effect.stiffness >= 0, f"stiffness must be >= 0 N·m/rad, got {effect.stiffness}")
+__all__ = ["EFFECT_TYPES", "VOCABULARY", "Backlash", "Cogging", "CoulombFriction",
+           "CurrentOffset", "Delay", "Effects", "StribeckFriction", "TorqueRipple"]

@@ -1,4 +1,4 @@
-"""Blind benchmark of ``stand diagnose`` (issue 5). A script, not collected by pytest.
+"""Blind benchmark of ``stand diagnose``. A script, not collected by pytest.
 
     python tests/bench/bench_diagnose.py --cases 200 --seed 1 --workers 2
 
@@ -14,8 +14,12 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
-from stand.diagnosis.benchmark import (
+# the harness lives in the checkout's tests package, beside (not in) the product
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from tests.bench.diagnose.benchmark import (  # noqa: E402
     MIN_EFFECT_SNR,
     confusion_table,
     run_benchmark,
@@ -50,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     print(confusion_table(summary))
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
     print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
-          f"stand.diagnosis.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
+          f"tests.bench.diagnose.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
           f"{'n/a' if summary['median_snr'] is None else format(summary['median_snr'], '.2f')}")
     if summary["refused"]:
         print(f"cases the engine refused (counted wrong): {summary['refused']}")

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from stand import effects
 from stand.diagnosis import diagnose
 from stand.excitation import excitation
 from stand.physics.effects import Effects
@@ -69,6 +70,7 @@ def test_planted_effect_is_the_verdict(effect: str) -> None:
     assert result.verdict.split("+")[0] == effect, result.message
     score = next(e for e in result.effects if e.effect == effect)
     assert score.significant
+    assert set(score.params) <= set(effects.get(effect).units), score.params
     # The effect explains much of the gap (the rest is sensor noise and quantization).
     assert score.shrink > MIN_SHRINK.get(effect, 0.4), score
 

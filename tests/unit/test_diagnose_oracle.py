@@ -3,7 +3,7 @@ beyond noise is visible, one far below the noise is not (answer-key side only)."
 
 from __future__ import annotations
 
-from stand.diagnosis.oracle import visibility
+from tests.bench.diagnose.oracle import visibility
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs
 
 

@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 
 from stand.cli import main
-from stand.diagnosis import candidates, diagnose, engine
+from stand.diagnosis import diagnose, engine
 from stand.diagnosis.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
 from stand.diagnosis.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
 from stand.diagnosis.signals import prepare, quantization_step
 from stand.diagnosis.significance import paired_improvement
 from stand.diagnosis.simulate import segments, simulate
+from stand.effects import backlash
 from stand.physics.parts import MotorParams, SensorParams
 from stand.runfile import Run, check_columns, read_run, write_run
 from tests.conftest import REAL_DATA
@@ -226,8 +227,8 @@ def test_a_dead_zone_of_a_few_counts_is_no_backlash(monkeypatch: pytest.MonkeyPa
         sensors=SensorParams(encoder_lines=1024, current_noise_A=5.3e-5),
         amplitude=(0.01556, 0.01126))
     assert diagnose(train, holdout).verdict == "none"
-    floor = candidates.MIN_GAP_COUNTS
-    monkeypatch.setattr(candidates, "MIN_GAP_COUNTS", 2)
+    floor = backlash.MIN_GAP_COUNTS
+    monkeypatch.setattr(backlash, "MIN_GAP_COUNTS", 2)
     result = diagnose(train, holdout)
     assert result.verdict.split("+")[0] == "backlash", result.message
     gap = next(e for e in result.effects if e.effect == "backlash").params["gap"]

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stand.diagnosis.benchmark import MIN_EFFECT_SNR, draw_case
 from stand.diagnosis.candidates import agree
 from stand.diagnosis.model import FittedModel, ModelSpec, load_estimate
-from stand.diagnosis.snr import effect_snr
+from tests.bench.diagnose.benchmark import MIN_EFFECT_SNR, draw_case
+from tests.bench.diagnose.snr import effect_snr
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs
 
 

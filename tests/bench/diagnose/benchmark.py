@@ -3,7 +3,7 @@
 Each case draws a motor, a drive mode and excitation, sensors, and zero, one or two
 effects of the vocabulary over wide ranges (:func:`draw_case`); an effect's parameters
 are drawn again until it shows above the sensor noise on HOLDOUT (its SNR,
-:mod:`stand.diagnosis.snr`, measured with the TRUE plant, at least ``min_snr``;
+:mod:`tests.bench.diagnose.snr`, measured with the TRUE plant, at least ``min_snr``;
 ``min_snr=0`` keeps every first draw); simulates a TRAIN and a
 HOLDOUT run with the stand simulator (:mod:`stand.physics`); writes both as CSV files
 (CONTRACT §1) and reads them back, so the diagnosis sees only what a user has; and
@@ -18,16 +18,15 @@ import math
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from stand.diagnosis.candidates import EFFECTS
-from stand.diagnosis.engine import diagnose
-from stand.diagnosis.oracle import visibility
-from stand.diagnosis.snr import effect_snr
+from stand.diagnosis import diagnose
+from stand.effects import EFFECTS, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
 from stand.physics.effects import Effects
@@ -35,6 +34,8 @@ from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, read_run, write_run
+from tests.bench.diagnose.oracle import visibility
+from tests.bench.diagnose.snr import effect_snr
 
 #: Length of each of TRAIN and HOLDOUT, s.
 RUN_DURATION_S = 10.0
@@ -48,7 +49,7 @@ STRENGTH_RANGE = (0.03, 0.3)
 MAX_ORDER_DRAWN = 24
 #: Encoder resolutions drawn, lines per revolution (4x quadrature).
 ENCODER_LINES = (500, 1000, 1024, 2000, 2500, 4096, 5000)
-#: Least SNR of the planted effects on HOLDOUT (:mod:`stand.diagnosis.snr`): the RMS they
+#: Least SNR of the planted effects on HOLDOUT (:mod:`tests.bench.diagnose.snr`): the RMS they
 #: add to the exact nominal model's error at least equals what sensor noise gives.
 MIN_EFFECT_SNR = 1.0
 #: Draws of a case's effect parameters on one stand, and of stands, before the last
@@ -102,8 +103,9 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
     names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
     truth = [EFFECTS[k] for k in names]
-    if {"coulomb_friction", "stribeck_friction"} <= set(truth):
-        truth.remove("coulomb_friction")  # Stribeck already holds a Coulomb level
+    # an effect nested in another drawn with it (Coulomb friction in Stribeck's) is
+    # already there
+    truth = [t for t in truth if not set(nested_in(t)) & set(truth)]
     draws = 0
     for attempt in range(STAND_DRAWS):
         if attempt:
@@ -150,36 +152,49 @@ def _draw_stand(index: int, seed: int, rng: np.random.Generator) -> Case:
 
 
 def case_snr(case: Case, duration_s: float = RUN_DURATION_S) -> float:
-    """SNR of the case's effects on its HOLDOUT run (:func:`stand.diagnosis.snr.effect_snr`)."""
+    """SNR of the case's effects on its HOLDOUT run (:func:`tests.bench.diagnose.snr.effect_snr`)."""
     J_with = case.motor.J + case.effects.get("backlash", {}).get("J_load", 0.0)
     return effect_snr(_simulate(case, 1, duration_s), _simulate(case, 1, duration_s, {}),
                       case.motor.J, J_with, case.motor.D, case.motor.Kt, SNR_HORIZON_S)
 
 
 def _draw_effect(name: str, rng: np.random.Generator, stand: Case) -> dict[str, float]:
-    current_ref, omega_ref, lines = stand.current_ref, stand.omega_ref, stand.sensors.encoder_lines
-    torque_ref, J = stand.motor.Kt * current_ref, stand.motor.J
+    """Parameters of effect ``name`` on ``stand``, of a strength drawn in
+    ``STRENGTH_RANGE`` of its typical drive torque."""
     strength = _log_uniform(rng, *STRENGTH_RANGE)
-    max_order = max(2, min(MAX_ORDER_DRAWN, 4 * lines // 16))
-    if name == "coulomb_friction":
-        return {"Tc": strength * torque_ref}
-    if name == "stribeck_friction":
-        Ts = strength * torque_ref
-        return {"Tc": Ts * rng.uniform(0.2, 0.6), "Ts": Ts,
-                "ws": omega_ref * _log_uniform(rng, 0.03, 0.3)}
-    if name == "cogging":
-        return {"Tcog": strength * torque_ref, "N": int(rng.integers(2, max_order + 1)),
-                "phi": rng.uniform(0, 2 * math.pi)}
-    if name == "current_offset":
-        return {"i0": strength * current_ref * float(rng.choice([-1.0, 1.0]))}
-    if name == "delay":
-        return {"k": int(rng.integers(1, 5))}
-    if name == "backlash":
-        return {"gap": _log_uniform(rng, 0.002, 0.05), "J_load": J * _log_uniform(rng, 0.3, 3.0)}
-    if name == "torque_ripple":
-        return {"eps": _log_uniform(rng, 0.03, 0.3), "N": int(rng.integers(2, max_order + 1)),
-                "phi": rng.uniform(0, 2 * math.pi)}
-    raise ValueError(name)
+    return DRAWS[name](rng, stand, strength)
+
+
+def _max_order(stand: Case) -> int:
+    return max(2, min(MAX_ORDER_DRAWN, 4 * stand.sensors.encoder_lines // 16))
+
+
+def _torque_ref(stand: Case) -> float:
+    return stand.motor.Kt * stand.current_ref
+
+
+def _stribeck(rng: np.random.Generator, stand: Case, strength: float) -> dict[str, float]:
+    Ts = strength * _torque_ref(stand)
+    return {"Tc": Ts * rng.uniform(0.2, 0.6), "Ts": Ts,
+            "ws": stand.omega_ref * _log_uniform(rng, 0.03, 0.3)}
+
+
+#: How the benchmark draws each effect's parameters: (rng, stand, strength) -> params.
+DRAWS: dict[str, Callable[[np.random.Generator, Case, float], dict[str, float]]] = {
+    "coulomb_friction": lambda rng, stand, strength: {"Tc": strength * _torque_ref(stand)},
+    "stribeck_friction": _stribeck,
+    "cogging": lambda rng, stand, strength: {
+        "Tcog": strength * _torque_ref(stand), "N": int(rng.integers(2, _max_order(stand) + 1)),
+        "phi": rng.uniform(0, 2 * math.pi)},
+    "current_offset": lambda rng, stand, strength: {
+        "i0": strength * stand.current_ref * float(rng.choice([-1.0, 1.0]))},
+    "delay": lambda rng, stand, strength: {"k": int(rng.integers(1, 5))},
+    "backlash": lambda rng, stand, strength: {
+        "gap": _log_uniform(rng, 0.002, 0.05), "J_load": stand.motor.J * _log_uniform(rng, 0.3, 3.0)},
+    "torque_ripple": lambda rng, stand, strength: {
+        "eps": _log_uniform(rng, 0.03, 0.3), "N": int(rng.integers(2, _max_order(stand) + 1)),
+        "phi": rng.uniform(0, 2 * math.pi)},
+}
 
 
 def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) -> dict[str, np.ndarray]:

@@ -1,0 +1,184 @@
+"""What every effect of the vocabulary (CONTRACT §3) says about itself, and the helpers
+their searches and checks share.
+
+An effect is one frozen dataclass (:class:`Effect`): an instance holds the effect's
+physical parameters in SI units, as the stand simulator uses them
+(:class:`stand.physics.effects.Effects`); the class says how the diagnosis models it —
+the :class:`~stand.diagnosis.model.ModelSpec` extension and its input columns, the search
+of its hyper-parameters on one run, the check that two runs found the same effect, its
+fitted parameters with units, and which other effects it contains.
+
+Parameters come back relative to the torque constant (the current-driven model only
+identifies torques per ``Kt``): ``Tc_over_Kt_A`` etc., in amperes of current that make
+the same torque; with ``kt`` given also in N·m.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from stand.diagnosis.model import FittedModel, ModelSpec, fit_residual_batch
+from stand.diagnosis.signals import Signals
+from stand.errors import InputError
+
+#: What a search returns when no grid point gives a physical fit.
+NO_FIT = ModelSpec(input_weight=-1.0)
+
+#: Largest ratio of an effect's size fitted on TRAIN and on HOLDOUT that still agrees.
+AGREE_RATIO = 3.0
+
+#: A spec's simulation error on the run it was searched on (:meth:`Effect.search`).
+Simulated = Callable[[ModelSpec], float]
+#: Fitted parameters of an effect, by name (units in each effect's ``units``).
+Params = dict[str, float | int | None]
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect of the vocabulary: its physical parameters (the dataclass fields, SI)
+    and, on the class, how the diagnosis models, searches and checks it.
+
+    Class attributes
+    ----------------
+    name : str
+        The vocabulary name (CONTRACT §3).
+    columns : tuple of str
+        Input columns the effect adds to a :class:`ModelSpec` (``ModelSpec.names``).
+    units : dict of str to str
+        Unit of each parameter :meth:`params` reports.
+    nests : tuple of str
+        Names of effects this one contains as a special case (Stribeck friction holds a
+        Coulomb level): never in a verdict beside it, replaced by it when it wins.
+    refit_on_holdout : bool
+        Whether its consistency is checked by re-fitting TRAIN's structure on HOLDOUT
+        rather than searching HOLDOUT afresh (a hyper-parameter with a flat optimum).
+    picked_by_simulation : bool
+        Whether its search picks hyper-parameters by simulating the run it searches
+        (it then takes ``simulated``).
+    speed_test_only : bool
+        Whether its holdout test uses the simulated speed alone (a regressor built from
+        the measured motion makes its HOLDOUT equation error meaningless).
+    across_runs_on_one_tone : bool
+        Whether a TRAIN whose current is one frequency cannot resolve it, so it is
+        picked across TRAIN and HOLDOUT over :meth:`grid`.
+    """
+
+    name: ClassVar[str]
+    columns: ClassVar[tuple[str, ...]] = ()
+    units: ClassVar[dict[str, str]] = {}
+    nests: ClassVar[tuple[str, ...]] = ()
+    refit_on_holdout: ClassVar[bool] = False
+    picked_by_simulation: ClassVar[bool] = False
+    speed_test_only: ClassVar[bool] = False
+    across_runs_on_one_tone: ClassVar[bool] = False
+
+    # --- physics ---------------------------------------------------------------------
+
+    def check(self, where: str) -> None:
+        """Raise :class:`~stand.errors.InputError` naming ``where`` when a parameter is
+        outside the physics."""
+
+    def structure(self) -> ModelSpec:
+        """The model extension of this effect at its true hyper-parameters."""
+        raise NotImplementedError
+
+    def true_coefficients(self, Kt: float) -> dict[str, float]:
+        """The effect's input-column coefficients per unit of the ``current``
+        coefficient (torques as the current that makes them, A), for a torque constant
+        ``Kt`` (N·m/A)."""
+        return {}
+
+    # --- diagnosis -------------------------------------------------------------------
+
+    @classmethod
+    def present(cls, spec: ModelSpec) -> bool:
+        """Whether ``spec`` models this effect."""
+        return any(column in spec.names() for column in cls.columns)
+
+    @classmethod
+    def search(cls, base: ModelSpec, train: Signals,
+               simulated: Simulated | None = None) -> ModelSpec:
+        """The model ``base`` plus this effect, its hyper-parameters picked on
+        ``train``; :data:`NO_FIT` when no choice gives a physical fit."""
+        raise NotImplementedError
+
+    @classmethod
+    def agree(cls, first: FittedModel, second: FittedModel) -> bool:
+        """Whether the effect fitted on two independent runs is the same effect."""
+        raise NotImplementedError
+
+    @classmethod
+    def params(cls, model: FittedModel, kt: float | None) -> Params:
+        """Physical parameters of the effect in the fitted ``model`` (``kt``: the torque
+        constant, N·m/A, when known)."""
+        raise NotImplementedError
+
+    @classmethod
+    def grid(cls, base: ModelSpec) -> list[ModelSpec]:
+        """For ``across_runs_on_one_tone`` effects: the specs picked from across runs."""
+        return []
+
+    @classmethod
+    def bracketed(cls, spec: ModelSpec) -> bool:
+        """Whether a best spec of :meth:`grid` lies within the range the effect reports."""
+        return True
+
+    @classmethod
+    def same(cls, a: ModelSpec, b: ModelSpec) -> bool:
+        """Whether two specs of :meth:`grid` pick the same value within its resolution."""
+        return a == b
+
+
+def need(condition: bool, where: str, text: str) -> None:
+    """Raise :class:`InputError` ``"{where}: {text}"`` unless ``condition``."""
+    if not condition:
+        raise InputError(f"{where}: {text}")
+
+
+def best(specs: list[ModelSpec], train: Signals, negative: tuple[str, ...] = (),
+         simulated: Simulated | None = None) -> ModelSpec:
+    """The spec of smallest equation-error RMS on ``train``; with ``negative``, only among
+    fits whose coefficients of those columns are negative (the physical sign); with
+    ``simulated`` (a spec's simulation error on ``train``), the one that simulates
+    ``train`` best among those."""
+    rms, coef = fit_residual_batch(specs, train)
+    for name in negative:
+        column = specs[0].names().index(name)
+        rms = np.where(coef[:, column] < 0, rms, np.inf)
+    if not np.isfinite(rms).any():
+        return NO_FIT
+    if simulated is not None:
+        rms = np.array([simulated(spec) if np.isfinite(r) else np.inf
+                        for spec, r in zip(specs, rms, strict=True)])
+    return specs[int(np.argmin(rms))]
+
+
+def torque(value_per_J: float, model: FittedModel, kt: float | None, name: str,
+           out: Params) -> None:
+    """Store a torque given per unit inertia (rad/s²) as ``name_over_Kt_A`` (A) and, with
+    ``kt``, as ``name`` (N·m)."""
+    over_kt = value_per_J / model.coef["current"]
+    out[f"{name}_over_Kt_A"] = over_kt
+    if kt is not None:
+        out[name] = over_kt * kt
+
+
+def ratio_ok(a: float, b: float, limit: float = AGREE_RATIO) -> bool:
+    """Same sign, and sizes within a factor ``limit``."""
+    return a * b > 0 and max(abs(a), abs(b)) <= limit * min(abs(a), abs(b))
+
+
+def fitted(first: FittedModel, second: FittedModel) -> bool:
+    """Whether both searches found a fit at all (neither is :data:`NO_FIT`)."""
+    return NO_FIT not in (first.spec, second.spec)
+
+
+def phase(model: FittedModel, prefix: str) -> tuple[float, float]:
+    """Amplitude and phase (rad) of the ``{prefix}_sin``/``{prefix}_cos`` columns."""
+    s, c = model.coef[f"{prefix}_sin"], model.coef[f"{prefix}_cos"]
+    return math.hypot(s, c), math.atan2(c, s)

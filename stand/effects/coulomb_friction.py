@@ -1,0 +1,56 @@
+"""Coulomb friction: a torque ``Tc·sign(ω)`` opposing motion."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from stand.diagnosis.model import FittedModel, ModelSpec
+from stand.diagnosis.signals import Signals
+from stand.effects.base import Effect, Params, Simulated, fitted, need, ratio_ok, torque
+
+
+@dataclass(frozen=True)
+class CoulombFriction(Effect):
+    """Torque ``Tc·sign(ω)`` opposing motion.
+
+    Parameters
+    ----------
+    Tc : float
+        Coulomb friction torque, N·m (>= 0).
+    """
+
+    name: ClassVar[str] = "coulomb_friction"
+    columns: ClassVar[tuple[str, ...]] = ("sign",)
+    units: ClassVar[dict[str, str]] = {"Tc_over_Kt_A": "A", "Tc": "N·m"}
+
+    Tc: float
+
+    def check(self, where: str) -> None:
+        need(self.Tc >= 0, where, f"Tc must be >= 0 N·m, got {self.Tc}")
+
+    def structure(self) -> ModelSpec:
+        return ModelSpec(coulomb=True)
+
+    def true_coefficients(self, Kt: float) -> dict[str, float]:
+        return {"sign": -self.Tc / Kt}
+
+    @classmethod
+    def present(cls, spec: ModelSpec) -> bool:
+        return spec.coulomb
+
+    @classmethod
+    def search(cls, base: ModelSpec, train: Signals,
+               simulated: Simulated | None = None) -> ModelSpec:
+        return base.merged(ModelSpec(coulomb=True))
+
+    @classmethod
+    def agree(cls, first: FittedModel, second: FittedModel) -> bool:
+        ca, cb = first.coef, second.coef
+        return fitted(first, second) and ca["sign"] < 0 and ratio_ok(ca["sign"], cb["sign"])
+
+    @classmethod
+    def params(cls, model: FittedModel, kt: float | None) -> Params:
+        out: Params = {}
+        torque(-model.coef["sign"], model, kt, "Tc", out)
+        return out

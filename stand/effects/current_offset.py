@@ -1,0 +1,46 @@
+"""Current offset: the measured current is the true current plus ``i0``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from stand.diagnosis.model import FittedModel, ModelSpec
+from stand.diagnosis.signals import Signals
+from stand.effects.base import Effect, Params, Simulated, fitted, ratio_ok
+
+
+@dataclass(frozen=True)
+class CurrentOffset(Effect):
+    """Measured current = true current + ``i0``.
+
+    Parameters
+    ----------
+    i0 : float
+        Offset of the current sensor, A.
+    """
+
+    name: ClassVar[str] = "current_offset"
+    columns: ClassVar[tuple[str, ...]] = ("one",)
+    units: ClassVar[dict[str, str]] = {"i0": "A"}
+
+    i0: float
+
+    def structure(self) -> ModelSpec:
+        return ModelSpec(offset=True)
+
+    def true_coefficients(self, Kt: float) -> dict[str, float]:
+        return {"one": -self.i0}  # the model sees i + i0: a constant −i0 restores i
+
+    @classmethod
+    def search(cls, base: ModelSpec, train: Signals,
+               simulated: Simulated | None = None) -> ModelSpec:
+        return base.merged(ModelSpec(offset=True))
+
+    @classmethod
+    def agree(cls, first: FittedModel, second: FittedModel) -> bool:
+        return fitted(first, second) and ratio_ok(first.coef["one"], second.coef["one"])
+
+    @classmethod
+    def params(cls, model: FittedModel, kt: float | None) -> Params:
+        return {"i0": -model.coef["one"] / model.coef["current"]}

@@ -1,0 +1,71 @@
+"""Torque ripple: a torque ``Kt·i·(1 + ε·sin(N·θ + φ))``."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+from stand.diagnosis.model import FittedModel, ModelSpec
+from stand.diagnosis.signals import Signals
+from stand.effects.base import Effect, Params, Simulated, fitted, phase, ratio_ok
+from stand.effects.periodic import check_order, in_phase, search_order
+
+
+@dataclass(frozen=True)
+class TorqueRipple(Effect):
+    """Torque ``Kt·i·(1 + ε·sin(N·θ + φ))``.
+
+    Parameters
+    ----------
+    eps : float
+        Relative ripple amplitude ε, 1 (below 1).
+    N : int
+        Cycles per revolution.
+    phi : float
+        Phase, rad.
+    """
+
+    name: ClassVar[str] = "torque_ripple"
+    columns: ClassVar[tuple[str, ...]] = ("rip_sin", "rip_cos")
+    units: ClassVar[dict[str, str]] = {"eps": "1", "N": "cycles/rev", "phi": "rad"}
+
+    eps: float
+    N: int
+    phi: float = 0.0
+
+    def check(self, where: str) -> None:
+        check_order(self.N, where)
+
+    def structure(self) -> ModelSpec:
+        return ModelSpec(ripple_N=int(self.N))
+
+    def true_coefficients(self, Kt: float) -> dict[str, float]:
+        return {"rip_sin": self.eps * math.cos(self.phi),
+                "rip_cos": self.eps * math.sin(self.phi)}
+
+    @classmethod
+    def search(cls, base: ModelSpec, train: Signals,
+               simulated: Simulated | None = None) -> ModelSpec:
+        """The order of smallest equation error among those the run resolves."""
+        return search_order(base, train, lambda n: ModelSpec(ripple_N=n))
+
+    @classmethod
+    def agree(cls, first: FittedModel, second: FittedModel) -> bool:
+        """The same order, in phase, ``0 < ε < 1`` on both runs (the torque keeps the
+        sign of the current), sizes within ``AGREE_RATIO``."""
+        if not fitted(first, second):
+            return False
+        ok, size_a, size_b = in_phase(first, second, "rip")
+        if not ok:
+            return False
+        size_a, size_b = size_a / first.coef["current"], size_b / second.coef["current"]
+        if not (0 < size_a < 1 and 0 < size_b < 1):
+            return False
+        return first.spec.ripple_N == second.spec.ripple_N and ratio_ok(size_a, size_b)
+
+    @classmethod
+    def params(cls, model: FittedModel, kt: float | None) -> Params:
+        amplitude, angle = phase(model, "rip")
+        return {"eps": amplitude / model.coef["current"], "N": model.spec.ripple_N,
+                "phi": angle}

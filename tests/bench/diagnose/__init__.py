@@ -1,0 +1,1 @@
+"""Harnesses of the diagnosis benchmark: blind cases, their answer key (oracle, SNR)."""
