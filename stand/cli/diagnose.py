@@ -60,6 +60,10 @@ def summarize(result: dict[str, Any]) -> str:
                            for k, v in e["params"].items())
         lines.append(f"{e['effect']:<20} {e['gap_percent']:6.2f}  {e['shrink']:7.2f}  "
                      f"{'yes' if e['significant'] else 'no':<11}  {params}")
+    lines += [f"in the verdict after {'+'.join(s['after'])}: {s['effect']} "
+              f"(gap {s['gap_before_percent']:.2f} -> {s['gap_percent']:.2f} %, shrink "
+              f"{s['shrink']:.2f}, p {s['p_value']:.2g})"
+              for s in result.get("steps", []) if s["after"]]
     lines += [f"note: {note}" for note in result.get("notes", [])]
     if result.get("plots"):
         lines.append("plots: " + ", ".join(result["plots"]))

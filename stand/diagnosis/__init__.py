@@ -13,6 +13,6 @@ benchmark on simulated stands lives outside the package, in ``tests/bench/diagno
 """
 
 from stand.diagnosis.engine import diagnose
-from stand.diagnosis.report import Diagnosis, EffectScore, Where
+from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep, Where
 
-__all__ = ["Diagnosis", "EffectScore", "Where", "diagnose"]
+__all__ = ["Diagnosis", "EffectScore", "SelectionStep", "Where", "diagnose"]

@@ -31,7 +31,7 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
-from stand.diagnosis.report import Diagnosis, EffectScore
+from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import MIN_SHRINK, PairedTest, paired_improvement
 from stand.diagnosis.simulate import Segments, segments, simulate
@@ -77,6 +77,9 @@ class _Bench:
         self.scale = float(np.sqrt(np.mean((self.measured - self.measured.mean()) ** 2)))
         if self.scale == 0.0:
             raise NotExcitedError(f"{holdout.source}: the speed never varies; nothing to compare")
+        #: Effects a run could not identify beside a base model, each with the effects
+        #: of that base model (their regressors were linearly dependent there).
+        self.aliased: dict[str, tuple[str, ...]] = {}
 
     def score(self, spec: ModelSpec) -> _Scored:
         """``spec`` identified on TRAIN, simulated on HOLDOUT."""
@@ -108,8 +111,22 @@ class _Bench:
         checked for consistency: the same search on HOLDOUT must find the same effect
         (or, for an effect whose TRAIN structure is re-fitted there, the same sizes: a
         hyper-parameter with a flat optimum, such as the Stribeck velocity, can land
-        elsewhere in a fresh search for a real effect)."""
+        elsewhere in a fresh search for a real effect).
+
+        An effect whose model with ``base`` one of the runs does not determine (its
+        regressors linearly dependent on the base model's there: a current offset
+        beside Coulomb friction on a shaft that never reverses) is no fit, and noted in
+        :attr:`aliased`: that run cannot tell them apart, which is an answer, not a
+        reason to refuse the diagnosis."""
         effect = effects.get(name)
+        try:
+            return self._candidate(effect, base)
+        except NotExcitedError:
+            self.aliased.setdefault(name, tuple(e.name for e in effects.all_effects()
+                                                if e.present(base.spec)))
+            return replace(base, spec=NO_FIT, consistent=False)
+
+    def _candidate(self, effect: type[Effect], base: _Scored) -> _Scored:
         if effect.across_runs_on_one_tone and self.tone_hz is not None:
             return self.across(effect, base)
         spec = effect.search(base.spec, self.train, self.simulated(effect, self.train))
@@ -306,7 +323,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
             params=effects.get(name).params(s.model, kt) if s.spec != NO_FIT else {},
             p_value=test.p_value, consistent=s.consistent))
     scores.sort(key=lambda e: e.gap_percent)
-    chosen, final = _select(bench, base, singles, {e.effect: e for e in scores}, max_effects)
+    chosen, final, steps = _select(bench, base, singles, {e.effect: e for e in scores},
+                                   max_effects)
     verdict = "+".join(chosen) if chosen else effects.NONE
     floor = _noise_floor(ho, bench.scale)
     message = (f"gap {base.gap:.1f} % (quantization floor {floor:.1f} %); verdict {verdict}"
@@ -327,14 +345,17 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                              "simulated position, like the measured speed",
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
-        noise_floor_percent=floor, message=message, notes=_notes(tr, bench.tone_hz)), traces
+        noise_floor_percent=floor, message=message,
+        notes=_notes(tr, bench.tone_hz) + _alias_notes(bench.aliased), steps=steps), traces
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
-            scores: dict[str, EffectScore], max_effects: int) -> tuple[list[str], _Scored]:
+            scores: dict[str, EffectScore], max_effects: int
+            ) -> tuple[list[str], _Scored, list[SelectionStep]]:
+    """The verdict's effects, the model with them, and the step that added each."""
     significant = [n for n in singles if scores[n].significant]
     if not significant:
-        return [], base
+        return [], base, []
     first = min(significant, key=lambda n: singles[n].gap)
     for outer in effects.nested_in(first):
         # an effect that nests the first (Stribeck friction holds a Coulomb level) is
@@ -346,19 +367,29 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
             first = outer
             break
     chosen, current = [first], singles[first]
+    steps = [_step(first, [], base, current, scores[first].p_value)]
     while len(chosen) < max_effects:
         remaining = [n for n in effects.EFFECTS if n not in chosen
                      and not set(effects.nested_in(n)) & set(chosen)]
         trials = {n: bench.candidate(n, current) for n in remaining}
+        tests = {n: _improvement(current, s) for n, s in trials.items()}
         passed = {n: s for n, s in trials.items() if s.consistent
-                  and _improvement(current, s).significant(len(trials))}
+                  and tests[n].significant(len(trials))}
         if not passed:
             break
         best = min(passed, key=lambda n: passed[n].gap)
         chosen = [n for n in chosen if n not in effects.get(best).nests]
+        steps.append(_step(best, chosen, current, passed[best], tests[best].p_value))
         chosen.append(best)
         current = passed[best]
-    return chosen, current
+    return chosen, current, steps
+
+
+def _step(name: str, after: list[str], before: _Scored, added: _Scored,
+          p_value: float) -> SelectionStep:
+    return SelectionStep(effect=name, after=list(after), gap_before_percent=before.gap,
+                         gap_percent=added.gap, shrink=1.0 - added.gap / before.gap,
+                         p_value=p_value)
 
 
 def _improvement(base: _Scored, cand: _Scored) -> PairedTest:
@@ -443,6 +474,20 @@ def _notes(train: Signals, tone_hz: float | None) -> list[str]:
                      "TRAIN and HOLDOUT (fitted on one, simulated on the other) and is "
                      "diagnosable only if HOLDOUT runs at another frequency (better: record "
                      "a run with a broadband command, e.g. PRBS)")
+    return notes
+
+
+def _alias_notes(aliased: dict[str, tuple[str, ...]]) -> list[str]:
+    """In words, the effects the runs could not tell apart (:attr:`_Bench.aliased`) and
+    the experiment that would."""
+    notes = []
+    for name, others in aliased.items():
+        ways = dict.fromkeys(effects.get(n).separated_by for n in (*others, name))
+        pair = f"{name} and {' + '.join(others)}" if others else name
+        notes.append(f"{pair} cannot be told apart on these runs (the model with "
+                     f"{'both' if others else 'it'} is not determined: its regressors are "
+                     f"linearly dependent), so {name} is left out; record a run with "
+                     f"{' or '.join(ways)} to separate them")
     return notes
 
 

@@ -40,6 +40,37 @@ class EffectScore:
 
 
 @dataclass(frozen=True)
+class SelectionStep:
+    """One effect added to the verdict, tested against the model before it.
+
+    The table of :class:`EffectScore` scores each effect alone against the nominal
+    model; an effect added after others is in the verdict because of its test as an
+    addition to them, which this records.
+
+    Attributes
+    ----------
+    effect : str
+        Vocabulary name.
+    after : list of str
+        The verdict's effects before it (empty for the first, tested against the nominal
+        model: its row of the table).
+    gap_before_percent, gap_percent : float
+        Holdout gap of the model before and with it, %.
+    shrink : float
+        ``1 − gap_percent / gap_before_percent``.
+    p_value : float
+        One-sided p-value of the improvement, corrected for the candidates of its step.
+    """
+
+    effect: str
+    after: list[str]
+    gap_before_percent: float
+    gap_percent: float
+    shrink: float
+    p_value: float
+
+
+@dataclass(frozen=True)
 class Where:
     """Where the gap lies.
 
@@ -97,7 +128,10 @@ class Diagnosis(JsonResult):
         One line for people.
     notes : list of str
         What the data cannot tell apart or resolve (e.g. Coulomb friction from a current
-        offset when the shaft never reverses).
+        offset when the shaft never reverses), and the experiment that would.
+    steps : list of SelectionStep
+        How the verdict was built: each of its effects with its test as an addition to
+        the ones before it.
     plots : list of str
         The figures written by the command line's ``--plot``, if any.
     """
@@ -113,4 +147,5 @@ class Diagnosis(JsonResult):
     noise_floor_percent: float
     message: str = ""
     notes: list[str] = field(default_factory=list)
+    steps: list[SelectionStep] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)

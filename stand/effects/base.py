@@ -32,6 +32,9 @@ NO_FIT = ModelSpec(input_weight=-1.0)
 #: Largest ratio of an effect's size fitted on TRAIN and on HOLDOUT that still agrees.
 AGREE_RATIO = 3.0
 
+#: The experiment that separates a constant torque from friction (``separated_by``).
+REVERSING_COMMAND = "a command that crosses zero, so that the shaft turns both ways"
+
 #: A spec's simulation error on the run it was searched on (:meth:`Effect.search`).
 Simulated = Callable[[ModelSpec], float]
 #: Fitted parameters of an effect, by name (units in each effect's ``units``).
@@ -66,6 +69,9 @@ class Effect:
     across_runs_on_one_tone : bool
         Whether a TRAIN whose current is one frequency cannot resolve it, so it is
         picked across TRAIN and HOLDOUT over :meth:`grid`.
+    separated_by : str
+        The experiment that tells this effect apart from others it can alias with, in
+        words (said when a run cannot).
     """
 
     name: ClassVar[str]
@@ -76,6 +82,7 @@ class Effect:
     picked_by_simulation: ClassVar[bool] = False
     speed_test_only: ClassVar[bool] = False
     across_runs_on_one_tone: ClassVar[bool] = False
+    separated_by: ClassVar[str] = "a broadband command (e.g. a PRBS) that crosses zero"
 
     # --- physics ---------------------------------------------------------------------
 

@@ -7,7 +7,7 @@ from typing import ClassVar
 
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
-from stand.effects.base import Effect, Params, Simulated, fitted, need, ratio_ok, torque
+from stand.effects.base import REVERSING_COMMAND, Effect, Params, Simulated, fitted, need, ratio_ok, torque
 
 
 @dataclass(frozen=True)
@@ -23,6 +23,8 @@ class CoulombFriction(Effect):
     name: ClassVar[str] = "coulomb_friction"
     columns: ClassVar[tuple[str, ...]] = ("sign",)
     units: ClassVar[dict[str, str]] = {"Tc_over_Kt_A": "A", "Tc": "N·m"}
+    # friction changes sign with the speed, a constant torque does not
+    separated_by: ClassVar[str] = REVERSING_COMMAND
 
     Tc: float
 

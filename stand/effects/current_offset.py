@@ -7,7 +7,7 @@ from typing import ClassVar
 
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
-from stand.effects.base import Effect, Params, Simulated, fitted, ratio_ok
+from stand.effects.base import REVERSING_COMMAND, Effect, Params, Simulated, fitted, ratio_ok
 
 
 @dataclass(frozen=True)
@@ -23,6 +23,8 @@ class CurrentOffset(Effect):
     name: ClassVar[str] = "current_offset"
     columns: ClassVar[tuple[str, ...]] = ("one",)
     units: ClassVar[dict[str, str]] = {"i0": "A"}
+    # an offset keeps its sign when the shaft reverses, friction does not
+    separated_by: ClassVar[str] = REVERSING_COMMAND
 
     i0: float
 

@@ -48,6 +48,7 @@ class StribeckFriction(Effect):
     units: ClassVar[dict[str, str]] = {"Tc_over_Kt_A": "A", "Tc": "N·m", "Ts_over_Kt_A": "A",
                                        "Ts": "N·m", "ws": "rad/s"}
     nests: ClassVar[tuple[str, ...]] = (CoulombFriction.name,)
+    separated_by: ClassVar[str] = CoulombFriction.separated_by
     # ωs has a flat optimum (it trades against the static excess), so a fresh search on
     # HOLDOUT can land elsewhere for a real effect: its TRAIN structure is re-fitted there
     refit_on_holdout: ClassVar[bool] = True
