@@ -31,7 +31,8 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
-from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep
+from stand.diagnosis.notes import aliases, limits, single_tone_hz
+from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep, Traces
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import MIN_SHRINK, PairedTest, paired_improvement
 from stand.diagnosis.simulate import Segments, segments, simulate
@@ -98,8 +99,8 @@ class _Bench:
 
     @cached_property
     def tone_hz(self) -> float | None:
-        """TRAIN's current frequency when it is one frequency (:func:`_single_tone_hz`)."""
-        return _single_tone_hz(self.train)
+        """TRAIN's current frequency when it is one frequency (:func:`.notes.single_tone_hz`)."""
+        return single_tone_hz(self.train)
 
     @cached_property
     def reverse(self) -> _Bench:
@@ -230,34 +231,6 @@ def compare_on_holdout(train: Run, holdout: Run,
                              test=paired_improvement(nominal.sse, other.sse))
 
 
-@dataclass(frozen=True)
-class Traces:
-    """What the figures show, on the HOLDOUT samples covered by the segments.
-
-    Attributes
-    ----------
-    time_s : ndarray
-        Sample times, s, shape (segments, horizon).
-    measured, nominal, verdict : ndarray
-        Measured speed, the nominal model's and the verdict model's simulated speed, rad/s.
-    theta, omega : ndarray
-        Filtered position (rad) and velocity (rad/s) of HOLDOUT, full length.
-    residual : ndarray
-        Equation error of the nominal model on HOLDOUT, rad/s², full length.
-    dt_s : float
-        Sample period, s.
-    """
-
-    time_s: np.ndarray
-    measured: np.ndarray
-    nominal: np.ndarray
-    verdict: np.ndarray
-    theta: np.ndarray
-    omega: np.ndarray
-    residual: np.ndarray
-    dt_s: float
-
-
 def diagnose(train: Run, holdout: Run, kt: float | None = None,
              horizon_s: float = ANCHOR_HORIZON_S, max_effects: int = MAX_EFFECTS,
              spring: bool = False) -> Diagnosis:
@@ -346,7 +319,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
         noise_floor_percent=floor, message=message,
-        notes=_notes(tr, bench.tone_hz) + _alias_notes(bench.aliased), steps=steps), traces
+        notes=limits(tr, bench.tone_hz) + aliases(bench.aliased), steps=steps), traces
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
@@ -450,63 +423,6 @@ def _nominal_spec(on_train: _Bench, spring: bool) -> ModelSpec:
     return ModelSpec(input_weight=best, spring=spring)
 
 
-#: Share of moving samples below which a direction of rotation counts as absent.
-ONE_DIRECTION_SHARE = 0.01
-#: Share of the current's power (mean removed, Hann window) within
-#: ``SINGLE_TONE_BINS`` bins of its strongest frequency above which TRAIN counts as
-#: exciting one frequency only.
-SINGLE_TONE_SHARE = 0.9
-SINGLE_TONE_BINS = 3
-
-
-def _notes(train: Signals, tone_hz: float | None) -> list[str]:
-    """Limits of what TRAIN can resolve, in words (``tone_hz``: TRAIN's current
-    frequency when it is one frequency, else None)."""
-    notes = []
-    moving = train.omega_f[np.abs(train.omega_f) > 0]
-    if moving.size and min(np.mean(moving > 0), np.mean(moving < 0)) < ONE_DIRECTION_SHARE:
-        notes.append("the shaft turns one way only on TRAIN: coulomb_friction and "
-                     "current_offset are the same constant torque there and cannot be told "
-                     "apart (record a run that reverses)")
-    if tone_hz is not None:
-        notes.append(f"the current on TRAIN is one frequency ({tone_hz:.3g} Hz): a delay of the "
-                     "current cannot be told from Kt/J and D/J there, so it is picked across "
-                     "TRAIN and HOLDOUT (fitted on one, simulated on the other) and is "
-                     "diagnosable only if HOLDOUT runs at another frequency (better: record "
-                     "a run with a broadband command, e.g. PRBS)")
-    return notes
-
-
-def _alias_notes(aliased: dict[str, tuple[str, ...]]) -> list[str]:
-    """In words, the effects the runs could not tell apart (:attr:`_Bench.aliased`) and
-    the experiment that would."""
-    notes = []
-    for name, others in aliased.items():
-        ways = dict.fromkeys(effects.get(n).separated_by for n in (*others, name))
-        pair = f"{name} and {' + '.join(others)}" if others else name
-        notes.append(f"{pair} cannot be told apart on these runs (the model with "
-                     f"{'both' if others else 'it'} is not determined: its regressors are "
-                     f"linearly dependent), so {name} is left out; record a run with "
-                     f"{' or '.join(ways)} to separate them")
-    return notes
-
-
-def _single_tone_hz(train: Signals) -> float | None:
-    """The frequency of TRAIN's current, Hz, when nearly all its power is at one
-    frequency (``SINGLE_TONE_SHARE``); else None."""
-    current = train.current - np.mean(train.current)
-    power = np.abs(np.fft.rfft(current * np.hanning(len(current)))) ** 2
-    power[0] = 0.0
-    total = float(np.sum(power))
-    if total == 0.0:
-        return None
-    peak = int(np.argmax(power))
-    near = float(np.sum(power[max(peak - SINGLE_TONE_BINS, 0):peak + SINGLE_TONE_BINS + 1]))
-    if near < SINGLE_TONE_SHARE * total:
-        return None
-    return peak / (len(current) * train.dt_s)
-
-
 def _noise_floor(sig: Signals, scale: float) -> float:
     """Gap from encoder quantization alone: central-difference noise over the speed RMS."""
     noise = sig.quant_rad / (np.sqrt(24.0) * sig.dt_s)
@@ -522,3 +438,7 @@ def _nominal_dict(model: FittedModel, kt: float | None) -> dict[str, float]:
         J = kt / b
         out.update(J=J, D=-model.c_omega * J, C=-model.c_theta * J)
     return out
+
+
+__all__ = ["ANCHOR_HORIZON_S", "MAX_EFFECTS", "HoldoutComparison", "Traces", "compare_on_holdout",
+           "diagnose", "diagnose_with_traces"]

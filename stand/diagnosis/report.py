@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from stand.jsonable import JsonResult
 
 
@@ -149,3 +151,31 @@ class Diagnosis(JsonResult):
     notes: list[str] = field(default_factory=list)
     steps: list[SelectionStep] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Traces:
+    """What the figures show, on the HOLDOUT samples covered by the segments.
+
+    Attributes
+    ----------
+    time_s : ndarray
+        Sample times, s, shape (segments, horizon).
+    measured, nominal, verdict : ndarray
+        Measured speed, the nominal model's and the verdict model's simulated speed, rad/s.
+    theta, omega : ndarray
+        Filtered position (rad) and velocity (rad/s) of HOLDOUT, full length.
+    residual : ndarray
+        Equation error of the nominal model on HOLDOUT, rad/s², full length.
+    dt_s : float
+        Sample period, s.
+    """
+
+    time_s: np.ndarray
+    measured: np.ndarray
+    nominal: np.ndarray
+    verdict: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    residual: np.ndarray
+    dt_s: float
