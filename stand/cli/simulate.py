@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from stand.cli import options
+from stand.effects.delay import Delay
 from stand.errors import InputError, NotFoundError
 from stand.excitation import EXCITATIONS
 from stand.physics.effects import Effects
@@ -61,7 +62,7 @@ def _delay_within_run(args: argparse.Namespace) -> str:
     """A ``delay`` effect must lag by fewer samples than the run has."""
     for text in args.effect:
         name, params = parse_effect(text)
-        if name != "delay" or "k" not in params:
+        if name != Delay.name or "k" not in params:
             continue
         try:
             dt = args.period or _profile_period(args.profile)
