@@ -10,9 +10,9 @@ project's 2-core build machine, shared with other jobs, they vary by 2-3x.
   speed-up; what the cost per item implies for 10⁵ runs; and whether every row equals the
   serial path's (to 1e-12).
 - ``diagnosis``: the project's blind diagnosis benchmark (cases drawn by
-  :mod:`stand.diagnosis.benchmark`) written as run files and diagnosed with
+  :mod:`tests.bench.diagnose.benchmark`) written as run files and diagnosed with
   ``run_batch("diagnose", ...)`` on 2 workers; top-1 accuracy and false alarms as
-  ``stand bench diagnose`` reports them.
+  ``tests/bench/bench_diagnose.py`` reports them.
 - ``kt``: the identification benchmark's torque-constant experiment (seed 000 eqs. 11-17)
   as a fleet: N simulated motors of one type, a no-load and an added-inertia run each,
   through ``run_batch("torque-constant", ...)``, with the fleet's Kt and its spread.
@@ -105,7 +105,8 @@ def scaling(items: int) -> None:
 
 
 def diagnosis(cases: int, seed: int = 1) -> None:
-    from stand.diagnosis.benchmark import draw_case, simulate_case, summarize_cases
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the harness is in tests/
+    from tests.bench.diagnose.benchmark import draw_case, simulate_case, summarize_cases
 
     with tempfile.TemporaryDirectory(prefix="bench-batch-diag-") as tmp:
         folder = Path(tmp)
