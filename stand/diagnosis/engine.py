@@ -107,7 +107,8 @@ class _Bench:
         """The same runs the other way round: identified on HOLDOUT, scored on TRAIN."""
         return _Bench(self.holdout, self.train, self.horizon_s)
 
-    def candidate(self, name: str, base: _Scored) -> _Scored:
+    def candidate(self, name: str, base: _Scored,
+                  worth_checking: Callable[[_Scored], bool] | None = None) -> _Scored:
         """``base`` plus effect ``name``, identified on TRAIN, scored on HOLDOUT, and
         checked for consistency: the same search on HOLDOUT must find the same effect
         (or, for an effect whose TRAIN structure is re-fitted there, the same sizes: a
@@ -118,22 +119,29 @@ class _Bench:
         regressors linearly dependent on the base model's there: a current offset
         beside Coulomb friction on a shaft that never reverses) is no fit, and noted in
         :attr:`aliased`: that run cannot tell them apart, which is an answer, not a
-        reason to refuse the diagnosis."""
+        reason to refuse the diagnosis.
+
+        With ``worth_checking``, the search on HOLDOUT runs only for a candidate it
+        accepts (its holdout test, say); any other is left not consistent unchecked.
+        """
         effect = effects.get(name)
         try:
-            return self._candidate(effect, base)
+            return self._candidate(effect, base, worth_checking)
         except NotExcitedError:
             self.aliased.setdefault(name, tuple(e.name for e in effects.all_effects()
                                                 if e.present(base.spec)))
             return replace(base, spec=NO_FIT, consistent=False)
 
-    def _candidate(self, effect: type[Effect], base: _Scored) -> _Scored:
+    def _candidate(self, effect: type[Effect], base: _Scored,
+                   worth_checking: Callable[[_Scored], bool] | None) -> _Scored:
         if effect.across_runs_on_one_tone and self.tone_hz is not None:
             return self.across(effect, base)
         spec = effect.search(base.spec, self.train, self.simulated(effect, self.train))
         if spec == NO_FIT:
             return replace(base, spec=NO_FIT, consistent=False)
         scored = self.score(spec)
+        if worth_checking is not None and not worth_checking(scored):
+            return scored
         if effect.refit_on_holdout:
             again = spec
         else:
@@ -344,7 +352,11 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     while len(chosen) < max_effects:
         remaining = [n for n in effects.EFFECTS if n not in chosen
                      and not set(effects.nested_in(n)) & set(chosen)]
-        trials = {n: bench.candidate(n, current) for n in remaining}
+        # only a trial that passes its test can enter: the others need no consistency check
+        def passes(s: _Scored, tests: int = len(remaining), before: _Scored = current) -> bool:
+            return _improvement(before, s).significant(tests)
+
+        trials = {n: bench.candidate(n, current, passes) for n in remaining}
         tests = {n: _improvement(current, s) for n, s in trials.items()}
         passed = {n: s for n, s in trials.items() if s.consistent
                   and tests[n].significant(len(trials))}

@@ -200,11 +200,14 @@ def periodic_mean(order: int, theta: np.ndarray,
 
 def _periodic_column(order: int, sig: Signals, sine: bool) -> np.ndarray:
     """Mean of ``sin(N·θ)`` (or cos) over the period after each sample, the filtered
-    position taken as moving linearly between samples."""
-    theta = sig.theta_f
-    step = np.concatenate([np.diff(theta), [0.0]])
-    mean_sin, mean_cos = periodic_mean(order, theta, step)
-    return mean_sin if sine else mean_cos
+    position taken as moving linearly between samples (both computed once per order
+    and cached on ``sig``: the two columns of an order are always used together)."""
+    key = ("periodic", order)
+    if key not in sig.cache:
+        theta = sig.theta_f
+        step = np.concatenate([np.diff(theta), [0.0]])
+        sig.cache[key] = np.stack(periodic_mean(order, theta, step))
+    return sig.cache[key][0 if sine else 1]
 
 
 def load_estimate(theta: np.ndarray, omega: np.ndarray, gap: float, dt_s: float,
@@ -291,16 +294,33 @@ def regressors(spec: ModelSpec, sig: Signals) -> dict[str, np.ndarray]:
 
 
 def filtered_inputs(spec: ModelSpec, sig: Signals) -> np.ndarray:
-    """The input columns of ``spec`` through the run's low-pass, shape (samples, columns).
+    """The input columns of ``spec`` through the run's low-pass, shape (samples, columns)."""
+    return np.column_stack([_filtered_column(spec, sig, name) for name in spec.names()])
 
-    Filtered columns are cached on ``sig`` (they are reused across the searches)."""
-    columns = []
-    for name in spec.names():
-        key = _column_key(spec, name)
-        if key not in sig.cache:
-            sig.cache[key] = sig.filt(_column(spec, sig, name))
-        columns.append(sig.cache[key])
-    return np.column_stack(columns)
+
+def _filtered_column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
+    """Input column ``name`` of ``spec`` through the run's low-pass, cached on ``sig``
+    (columns are reused across the searches)."""
+    key = _column_key(spec, name)
+    if key not in sig.cache:
+        sig.cache[key] = sig.filt(_column(spec, sig, name))
+    return sig.cache[key]
+
+
+def _prefetch(specs: list[ModelSpec], sig: Signals) -> None:
+    """Filter the columns of ``specs`` not yet cached on ``sig`` in one pass of the
+    low-pass (a search's specs bring dozens of new columns at once)."""
+    missing: dict[tuple[object, ...], tuple[ModelSpec, str]] = {}
+    for spec in specs:
+        for name in spec.names():
+            key = _column_key(spec, name)
+            if key not in sig.cache:
+                missing.setdefault(key, (spec, name))
+    if len(missing) < 2:
+        return
+    raw = np.stack([_column(spec, sig, name) for spec, name in missing.values()])
+    for key, column in zip(missing, sig.filt(raw, axis=1), strict=True):
+        sig.cache[key] = column
 
 
 def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:
@@ -309,15 +329,24 @@ def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:
     return np.where(np.abs(omega) > resolution, np.sign(omega), 0.0)
 
 
+def _fit_columns(spec: ModelSpec, sig: Signals) -> list[tuple[tuple[object, ...], np.ndarray]]:
+    """The filtered input columns of ``spec`` as the fit uses them, each with its cache
+    key: a backlash model's load column in its fitting form (:func:`_from_fitting_form`),
+    the twist acceleration ``θ'' − θ_l''``."""
+    out = []
+    for name in spec.names():
+        key, column = _column_key(spec, name), _filtered_column(spec, sig, name)
+        if name == "load_accel":
+            out.append((("twist", *key), sig.accel_f - column))
+        else:
+            out.append((key, column))
+    return out
+
+
 def _stack(spec: ModelSpec, sig: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``ẋ``, ``x`` and ``u`` of the fit; a backlash model's load column in its fitting
-    form (:func:`_from_fitting_form`)."""
-    u_f = filtered_inputs(spec, sig)
+    """``ẋ``, ``x`` and ``u`` of the fit (:func:`_fit_columns`)."""
+    u_f = np.column_stack([column for _, column in _fit_columns(spec, sig)])
     keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
-    if spec.backlash_gap is not None:
-        u_f = u_f.copy()
-        load = spec.names().index("load_accel")
-        u_f[:, load] = sig.accel_f - u_f[:, load]  # θ'' − θ_l'': the twist acceleration
     if spec.spring:
         x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
         xdot = np.column_stack([sig.omega_f, sig.accel_f])[keep]
@@ -399,13 +428,13 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
     The specs must have the same number of input columns; they are solved as one batch.
     Problems that cannot be solved (or give no finite model) give ``inf``. Also returns
     the input coefficients, shape (specs, columns), in the order of ``ModelSpec.names``.
+
+    The specs of a search share most of their columns (the base model's) and differ in
+    one or two, so the sums of eq. 10 are taken once over the distinct columns of the
+    whole batch (one Gram matrix) and each spec's sums are its rows and columns of it:
+    the same sums as stacking every spec's samples, without the copies.
     """
-    stacks = [_stack(spec, sig) for spec in specs]
-    n = min(len(s[1]) for s in stacks)
-    xdot = np.stack([s[0][:n] for s in stacks])
-    x = np.stack([s[1][:n] for s in stacks])
-    u = np.stack([s[2][:n] for s in stacks])
-    sums = QSums.zeros(x.shape[2], u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
+    sums = _batch_sums(specs, sig)
     result = solve(sums, check=False)
     rms = np.asarray(result.residual_rms)[:, -1]
     B_fitted = np.asarray(result.B)[:, -1, :]
@@ -413,6 +442,48 @@ def fit_residual_batch(specs: list[ModelSpec], sig: Signals) -> tuple[np.ndarray
     solved = (np.isfinite(rms) & np.isfinite(A).all(axis=1) & np.isfinite(B).all(axis=1)
               & ~_never_carried(specs[0], B_fitted))
     return np.where(solved, rms, np.inf), B
+
+
+def _batch_sums(specs: list[ModelSpec], sig: Signals) -> QSums:
+    """The Q-matrix sums of every spec of a batch of one delay, from the products of the
+    columns all specs share with everything and of each spec's own columns with
+    themselves (:func:`_fit_columns`); a batch of several delays is stacked per spec."""
+    if len({spec.delay for spec in specs}) > 1:
+        stacks = [_stack(spec, sig) for spec in specs]
+        n = min(len(s[1]) for s in stacks)
+        xdot = np.stack([s[0][:n] for s in stacks])
+        x = np.stack([s[1][:n] for s in stacks])
+        u = np.stack([s[2][:n] for s in stacks])
+        return QSums.zeros(x.shape[2], u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
+    keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - specs[0].delay)
+    _prefetch(specs, sig)
+    layouts = [dict(_fit_columns(spec, sig)) for spec in specs]
+    shared = {k: v for k, v in layouts[0].items() if all(k in lay for lay in layouts)}
+    own = [[k for k in lay if k not in shared] for lay in layouts]
+    states = ([sig.omega_f, sig.accel_f, sig.theta_f, sig.omega_f] if specs[0].spring
+              else [sig.accel_f, sig.omega_f])
+    nx = len(states) // 2
+    common = np.column_stack([*states, *shared.values(), np.ones(len(sig))])[keep]
+    a, o = common.shape[1], len(own[0])
+    G = np.empty((len(specs), a + o, a + o))
+    G[:, :a, :a] = common.T @ common
+    if o:
+        mine = np.column_stack([lay[k] for lay, keys in zip(layouts, own, strict=True)
+                                for k in keys])[keep].reshape(-1, len(specs), o)
+        cross = (common.T @ mine.reshape(len(mine), -1)).reshape(a, len(specs), o)
+        G[:, :a, a:] = cross.transpose(1, 0, 2)
+        G[:, a:, :a] = cross.transpose(1, 2, 0)
+        by_spec = mine.transpose(1, 2, 0)
+        G[:, a:, a:] = by_spec @ by_spec.transpose(0, 2, 1)
+    # from the order [states, shared, 1, own] to each spec's [states, its columns, 1]
+    place = {k: 2 * nx + j for j, k in enumerate(shared)}
+    index = np.array([[*range(2 * nx),
+                       *(place[k] if k in place else a + keys.index(k) for k in lay),
+                       a - 1] for lay, keys in zip(layouts, own, strict=True)])
+    rows = np.arange(len(specs))[:, None, None]
+    G = sig.dt_s * G[rows, index[:, :, None], index[:, None, :]]
+    samples = np.full(len(specs), common.shape[0], dtype=np.int64)
+    return QSums(nx, index.shape[1] - 2 * nx - 1, G, samples)
 
 
 def equation_residual(model: FittedModel, sig: Signals) -> np.ndarray:

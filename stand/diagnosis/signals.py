@@ -76,18 +76,22 @@ class Signals:
     def __len__(self) -> int:
         return len(self.theta)
 
-    def filt(self, values: np.ndarray) -> np.ndarray:
-        """``values`` through the same zero-phase low-pass as the filtered signals."""
-        return lowpass(values)
+    def filt(self, values: np.ndarray, axis: int = 0) -> np.ndarray:
+        """``values`` through the same zero-phase low-pass as the filtered signals, along
+        time ``axis``."""
+        return lowpass(values, axis)
 
 
-_SOS = sps.butter(FILTER_ORDER, FILTER_FRACTION_OF_NYQUIST, output="sos")
+# One second-order section: the transfer-function form is as accurate as the
+# second-order-section form there, and lfilter runs it about three times faster.
+_B, _A = sps.butter(FILTER_ORDER, FILTER_FRACTION_OF_NYQUIST)
 
 
-def lowpass(values: np.ndarray) -> np.ndarray:
-    """Zero-phase Butterworth low-pass at ``FILTER_FRACTION_OF_NYQUIST`` (any 1-D/2-D)."""
-    return np.asarray(sps.sosfiltfilt(_SOS, values, axis=0, padtype="odd",
-                                      padlen=min(60, len(values) - 1)))
+def lowpass(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Zero-phase Butterworth low-pass at ``FILTER_FRACTION_OF_NYQUIST`` (any 1-D/2-D),
+    along time ``axis``."""
+    return np.asarray(sps.filtfilt(_B, _A, values, axis=axis, padtype="odd",
+                                   padlen=min(60, values.shape[axis] - 1)))
 
 
 def central_difference(values: np.ndarray, dt_s: float) -> np.ndarray:
