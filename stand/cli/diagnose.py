@@ -43,15 +43,25 @@ def run(args: argparse.Namespace) -> Diagnosis:
     return replace(result, plots=[str(p) for p in write_plots(args.plot, result, traces)])
 
 
-def summarize(result: dict[str, Any]) -> str:
-    where = result["where"]
-    place = where["regime"]
+def _place(where: dict[str, Any]) -> str:
+    place = str(where["regime"])
     for key, unit in (("cycles_per_rev", " cycles/rev"), ("band_hz", " Hz"), ("lag_s", " s")):
         if where.get(key) is not None:
             place += f", {key} {where[key]}{unit}"
+    for key in ("velocity_sign_energy", "current_level_energy"):
+        if where.get(key):
+            place += f", {key.split('_energy')[0]} " + " ".join(
+                f"{k} {v:.2f}" for k, v in where[key].items())
+    return place
+
+
+def summarize(result: dict[str, Any]) -> str:
+    noise = result.get("noise_gap_percent")
     lines = [
         f"gap {result['gap_percent']:.2f} % of the holdout speed "
-        f"(quantization floor {result['noise_floor_percent']:.2f} %), where: {place}",
+        f"(quantization floor {result['noise_floor_percent']:.2f} %"
+        + (f", noise explains {noise:.2f} %" if noise is not None else "")
+        + f"), where: {_place(result['where'])}",
         f"verdict: {result['verdict']} (gap with it {result['verdict_gap_percent']:.2f} %)",
         "effect               gap %   shrink  significant  params",
     ]
@@ -64,6 +74,11 @@ def summarize(result: dict[str, Any]) -> str:
               f"(gap {s['gap_before_percent']:.2f} -> {s['gap_percent']:.2f} %, shrink "
               f"{s['shrink']:.2f}, p {s['p_value']:.2g})"
               for s in result.get("steps", []) if s["after"]]
+    if result.get("residual_where") and result["verdict"] != "none":
+        lines.append(f"what remains lies: {_place(result['residual_where'])}")
+    if result.get("model"):
+        lines.append("model with the verdict's effects: " + ", ".join(
+            f"{k}={v:.4g}" for k, v in result["model"].items() if isinstance(v, float)))
     lines += [f"note: {note}" for note in result.get("notes", [])]
     if result.get("plots"):
         lines.append("plots: " + ", ".join(result["plots"]))

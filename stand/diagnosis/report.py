@@ -92,6 +92,9 @@ class Where:
         Mean squared residual in each regime over the overall mean.
     velocity_sign_energy : dict of str to float
         The same for ``positive`` and ``negative`` velocity.
+    current_level_energy : dict of str to float
+        The same for ``low``, ``middle`` and ``high`` thirds of ``|current|`` (a
+        residual growing with the current points at the torque constant).
     """
 
     regime: str
@@ -100,6 +103,7 @@ class Where:
     lag_s: float | None = None
     regime_energy: dict[str, float] = field(default_factory=dict)
     velocity_sign_energy: dict[str, float] = field(default_factory=dict)
+    current_level_energy: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -115,7 +119,9 @@ class Diagnosis(JsonResult):
     effects : list of EffectScore
         Every candidate of the vocabulary, best (smallest gap) first.
     verdict : str
-        The effect (or ``+``-joined effects, best first) that explains the gap, or ``none``.
+        The effect (or ``+``-joined effects, best first) that explains the gap, ending in
+        ``unexplained`` when a gap beyond noise remains after them; ``none`` when the
+        nominal gap is within noise.
     verdict_gap_percent : float
         Holdout gap of the model with the verdict's effects, %.
     verdict_params : dict
@@ -136,6 +142,15 @@ class Diagnosis(JsonResult):
         the ones before it.
     plots : list of str
         The figures written by the command line's ``--plot``, if any.
+    residual_where : Where
+        Where what remains after the verdict's effects lies (the equation error of the
+        model with them on HOLDOUT), as ``where``.
+    model : dict
+        The nominal parameters re-identified with the verdict's effects (``Kt_over_J``
+        1/(A·s²), ``D_over_J`` 1/s, ...) and each effect's parameters under its name.
+    noise_gap_percent : float
+        Gap that noise alone gives (quantization and current noise through the free
+        run), %; a gap above ``UNEXPLAINED_FACTOR`` times it is beyond noise.
     """
 
     gap_percent: float
@@ -151,6 +166,9 @@ class Diagnosis(JsonResult):
     notes: list[str] = field(default_factory=list)
     steps: list[SelectionStep] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
+    residual_where: Where | None = None
+    model: dict[str, object] = field(default_factory=dict)
+    noise_gap_percent: float | None = None
 
 
 @dataclass(frozen=True)

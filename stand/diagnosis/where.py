@@ -127,9 +127,17 @@ def locate(residual: np.ndarray, sig: Signals) -> Where:
     for name, mask in (("positive", sig.omega_f > 0), ("negative", sig.omega_f < 0)):
         if mask.any():
             by_sign[name] = float(np.mean(energy[mask]) / mean)
+    by_current = {}
+    level = np.abs(sig.current)
+    low, high = np.quantile(level, [1 / 3, 2 / 3])
+    for name, mask in (("low", level <= low), ("middle", (level > low) & (level <= high)),
+                       ("high", level > high)):
+        if mask.any():
+            by_current[name] = float(np.mean(energy[mask]) / mean)
     max_order = MAX_ORDER
     if sig.quant_rad > 0:
         max_order = max(1, min(MAX_ORDER, int(2 * math.pi / sig.quant_rad // 16)))
     return Where(regime=regime, cycles_per_rev=_order(residual, sig.theta_f, max_order),
                  band_hz=_band(residual, sig.dt_s), lag_s=_lag(residual, sig.current, sig.dt_s),
-                 regime_energy=ratios, velocity_sign_energy=by_sign)
+                 regime_energy=ratios, velocity_sign_energy=by_sign,
+                 current_level_energy=by_current)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -136,6 +137,10 @@ class MotorPlant:
             if e.torque_ripple else None
         )
         self.backlash = None
+        #: A torque outside the effect vocabulary, N·m, of (θ rad, ω rad/s, i A, t s),
+        #: opposing the motor like friction (a benchmark's effects the diagnosis does
+        #: not know); None: none.
+        self.extra_torque: Callable[[float, float, float, float], float] | None = None
         self.theta_load = self.omega_load = 0.0
         if e.backlash:
             k, c = contact_constants(self.J, e.backlash.J_load, e.backlash.stiffness)
@@ -162,10 +167,13 @@ class MotorPlant:
         cogging, ripple, backlash = self.cogging, self.ripple, self.backlash
         theta, omega = self.theta, self.omega
         theta_l, omega_l = self.theta_load, self.omega_load
-        for _ in range(n):
+        extra = self.extra_torque
+        for sub in range(n):
             i = arm.step(h, omega)
             gain = 1.0 + ripple[0] * math.sin(ripple[1] * theta + ripple[2]) if ripple else 1.0
             torque = Kt * i * gain - D * omega - C * theta
+            if extra is not None:
+                torque -= extra(theta, omega, i, self.time_s + sub * h)
             if cogging:
                 torque -= cogging[0] * math.sin(cogging[1] * theta + cogging[2])
             if backlash:

@@ -9,6 +9,7 @@ fails here.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -33,14 +34,18 @@ def stand_runs(effects: dict[str, dict[str, float]], seed: int = 1,
                hold: tuple[int, int] = (50, 35), kind: str = "prbs",
                dt_s: float = DT_S, motor: MotorParams = MOTOR,
                sensors: SensorParams = SENSORS, amplitude: tuple[float, float] = (0.5, 0.5),
-               duration_s: float = DURATION_S) -> tuple[Run, Run]:
+               duration_s: float = DURATION_S,
+               extra_torque: Callable[[float, float, float, float], float] | None = None
+               ) -> tuple[Run, Run]:
     """TRAIN and HOLDOUT of the test stand with ``effects`` (``kind`` of current command
     of ``amplitude`` A, sampled every ``dt_s``; another ``motor``, ``sensors`` or
-    ``duration_s`` if given)."""
+    ``duration_s`` if given; ``extra_torque``: a torque outside the vocabulary, N·m,
+    of θ, ω, i, t)."""
     runs = []
     for k in range(2):
         plant = MotorPlant(motor, DriveParams(mode="current"), sensors,
                            Effects.from_mapping(effects), seed=seed + k)
+        plant.extra_torque = extra_torque
         samples = int(round(duration_s / dt_s))
         command = excitation(kind, samples, dt_s, 0.0, amplitude[k], hold[k], seed=seed + k)
         runs.append(simulate_motor(plant, "current", command, dt_s))

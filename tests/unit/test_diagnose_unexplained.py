@@ -1,0 +1,76 @@
+"""A gap the vocabulary does not explain is called ``unexplained``, never ``none``; an
+effect of the vocabulary is named without it; the verdict's model and what remains.
+
+The stand is that of :mod:`tests.unit.test_diagnose_effects` (Kt 0.05 N·m/A,
+J 2e-5 kg·m², PRBS of ± 0.5 A, 1000-line encoder, 0.01 A current noise, 1 ms, 6 s).
+The effect outside the vocabulary is a fan's drag ``Cd·ω·|ω|``, about 10 % of the drive
+torque (25 mN·m) at the run's typical speed of about 100 rad/s (50 ms PRBS steps at
+1250 rad/s²).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stand.diagnosis import diagnose
+from stand.diagnosis.engine import UNEXPLAINED, UNEXPLAINED_FACTOR
+from stand.diagnosis.plots import worst_window
+from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
+
+#: Fan drag coefficient, N·m·s²/rad²: 2.5 mN·m at 100 rad/s.
+FAN_CD = 2.5e-7
+
+
+def _fan(theta: float, omega: float, i: float, t: float) -> float:
+    return FAN_CD * omega * abs(omega)
+
+
+def test_an_effect_outside_the_vocabulary_is_unexplained_never_none() -> None:
+    result = diagnose(*stand_runs({}, extra_torque=_fan), kt=MOTOR.Kt)
+    assert result.verdict.split("+")[-1] == UNEXPLAINED, result.message
+    assert result.noise_gap_percent is not None
+    assert result.verdict_gap_percent > UNEXPLAINED_FACTOR * result.noise_gap_percent
+    assert result.residual_where is not None
+    assert set(result.residual_where.velocity_sign_energy) == {"positive", "negative"}
+
+
+def test_an_effect_of_the_vocabulary_leaves_nothing_unexplained() -> None:
+    result = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]}),
+                      kt=MOTOR.Kt)
+    assert result.verdict == "coulomb_friction", result.message
+    assert result.noise_gap_percent is not None
+    assert result.verdict_gap_percent <= UNEXPLAINED_FACTOR * result.noise_gap_percent
+
+
+def test_the_model_holds_the_nominal_parameters_fitted_with_the_verdicts_effects() -> None:
+    result = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]}),
+                      kt=MOTOR.Kt)
+    model = result.model
+    # 2 % on Kt/J and Tc: a 6 s run with 0.01 A current noise identifies them to ~0.5 %;
+    # D/J (2.5 1/s, a weak term beside friction) to 30 %
+    np.testing.assert_allclose(model["Kt_over_J"], MOTOR.Kt / MOTOR.J, rtol=0.02)
+    np.testing.assert_allclose(model["D_over_J"], MOTOR.D / MOTOR.J, rtol=0.3)
+    friction = model["coulomb_friction"]
+    assert isinstance(friction, dict)
+    np.testing.assert_allclose(friction["Tc"], PLANTED["coulomb_friction"]["Tc"], rtol=0.02)
+    # the nominal model without friction takes some of it as viscous damping
+    assert abs(result.nominal["D_over_J"] - MOTOR.D / MOTOR.J) > abs(
+        model["D_over_J"] - MOTOR.D / MOTOR.J)
+
+
+def test_an_effect_free_run_is_none_within_the_noise() -> None:
+    result = diagnose(*stand_runs({}), kt=MOTOR.Kt)
+    assert result.verdict == "none", result.message
+    assert result.noise_gap_percent is not None
+    assert result.gap_percent <= UNEXPLAINED_FACTOR * result.noise_gap_percent
+    assert result.model["Kt_over_J"] == result.nominal["Kt_over_J"]
+
+
+def test_the_speed_figure_shows_the_window_where_the_nominal_model_errs_most() -> None:
+    time = np.arange(0.0, 10.0, 0.01)
+    error = np.where((time >= 6.0) & (time < 6.5), 1.0, 0.01)
+    keep = worst_window(time, error, 3.0)
+    assert keep[(time >= 6.0) & (time < 6.5)].all()
+    # 3 s of samples, within one sample period (the grid of float times)
+    np.testing.assert_allclose(np.ptp(time[keep]), 3.0, atol=0.011)
+    assert worst_window(time, error, 12.0).all()  # a run shorter than it: all of it
