@@ -40,13 +40,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--min-snr", type=float, default=MIN_EFFECT_SNR,
                         help="least SNR of a planted effect on HOLDOUT (weaker draws are drawn "
                         "again; 0 keeps every first draw, effects below the noise included)")
+    parser.add_argument("--outside-share", type=float, default=0.0,
+                        help="share of cases with one effect outside the vocabulary instead")
+    parser.add_argument("--first", type=int, default=0, help="index of the first case")
+    parser.add_argument("--no-timing", action="store_true", help="skip the timing case")
     parser.add_argument("--rows", help="write every case as JSON lines to this file")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr)
+    rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr,
+                         outside_share=args.outside_share, first=args.first)
     wall = time.perf_counter() - start
     summary = summarize_cases(rows)
-    timing = timing_case()
+    timing = None if args.no_timing else timing_case()
     if args.rows:
         with open(args.rows, "w", encoding="utf-8") as out:
             for row in rows:
@@ -68,8 +73,16 @@ def main(argv: list[str] | None = None) -> int:
           f"identified nominal model; effect-free cases included): "
           f"{_percent(summary['visible_top1_accuracy'])} -- a diagnostic, NOT the headline")
     print(f"median holdout shrink of the true effect {_percent(summary['median_true_shrink'])}")
-    print(f"diagnose {timing['duration_s']:.0f} s at {timing['rate_hz']:.0f} Hz: "
-          f"{timing['seconds']:.2f} s (read + diagnose)")
+    print(f"in-vocabulary top-1 {_percent(summary['in_vocabulary_top1'])} of "
+          f"{summary['in_vocabulary_cases']}; wrongly unexplained "
+          f"{_percent(summary['in_vocabulary_wrongly_unexplained'])}; pairs exact "
+          f"{_percent(summary['pairs_exact'])} of {summary['pair_cases']}")
+    print(f"outside the vocabulary: unexplained {_percent(summary['outside_unexplained'])} of "
+          f"{summary['outside_cases']}, none {summary['outside_none']}; by effect "
+          f"(unexplained, cases): {summary['outside_by_effect']}")
+    if timing:
+        print(f"diagnose {timing['duration_s']:.0f} s at {timing['rate_hz']:.0f} Hz: "
+              f"{timing['seconds']:.2f} s (read + diagnose)")
     return 0
 
 

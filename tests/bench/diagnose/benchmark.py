@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from stand.diagnosis import diagnose
+from stand.diagnosis.engine import UNEXPLAINED
 from stand.effects import EFFECTS, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
@@ -35,6 +36,7 @@ from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, read_run, write_run
 from tests.bench.diagnose.oracle import visibility
+from tests.bench.diagnose.outside import OUTSIDE, draw_outside, outside_torque
 from tests.bench.diagnose.snr import effect_snr
 
 #: Length of each of TRAIN and HOLDOUT, s.
@@ -85,10 +87,12 @@ class Case:
     draws: int = 1
     current_ref: float = 0.0
     omega_ref: float = 0.0
+    #: Effects outside the vocabulary (:mod:`tests.bench.diagnose.outside`).
+    outside: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
-              duration_s: float = RUN_DURATION_S) -> Case:
+              duration_s: float = RUN_DURATION_S, outside_share: float = 0.0) -> Case:
     """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible).
 
     Which effects a case has is drawn once. Their parameters are drawn again (up to
@@ -96,9 +100,17 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     and experiment on which they never reach it (backlash under a tight speed loop, a
     high-order ripple at speed) is drawn anew, up to ``STAND_DRAWS`` times, and the last
     draw is kept whatever its SNR. The first draw does not depend on ``min_snr``:
-    ``min_snr=0`` gives the cases of an unconditioned draw."""
+    ``min_snr=0`` gives the cases of an unconditioned draw.
+
+    With ``outside_share``, that share of the cases (drawn from a stream of their own,
+    so the other cases stay as without it) has one effect outside the vocabulary
+    instead (:mod:`tests.bench.diagnose.outside`), of a strength in ``STRENGTH_RANGE``,
+    drawn again like the others until it shows above the noise."""
     rng = np.random.default_rng([seed, index])
     stand = _draw_stand(index, seed, rng)
+    side = np.random.default_rng([seed, index, 11])
+    if side.random() < outside_share:
+        return _draw_outside_case(stand, side, min_snr, duration_s)
     u = rng.random()
     count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
     names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
@@ -120,6 +132,22 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
             case.snr = case_snr(case, duration_s)
             if case.snr >= min_snr:
                 return case
+    return case
+
+
+def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
+                       duration_s: float) -> Case:
+    """``stand`` with one outside effect, drawn until its SNR reaches ``min_snr``."""
+    name = str(rng.choice(sorted(OUTSIDE)))
+    case = stand
+    for draw in range(1, EFFECT_DRAWS + 1):
+        strength = _log_uniform(rng, *STRENGTH_RANGE)
+        params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand), stand.current_ref,
+                              stand.omega_ref, strength)
+        case = replace(stand, outside={name: params}, truth=[f"outside:{name}"], draws=draw)
+        case.snr = case_snr(case, duration_s)
+        if case.snr >= min_snr:
+            break
     return case
 
 
@@ -211,6 +239,8 @@ def _simulate(case: Case, which: int, duration_s: float,
     chosen = case.effects if effects is None else effects
     plant = MotorPlant(case.motor, case.drive, case.sensors, Effects.from_mapping(chosen),
                        seed=seed)
+    if effects is None:
+        plant.extra_torque = outside_torque(case.outside, duration_s)
     samples = int(round(duration_s / case.dt_s))
     hold, amplitude = case.hold, case.amplitude
     if which:  # HOLDOUT is another experiment: other rate and excursion of the command
@@ -222,9 +252,9 @@ def _simulate(case: Case, which: int, duration_s: float,
 
 
 def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
-             min_snr: float = MIN_EFFECT_SNR) -> dict[str, Any]:
+             min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0) -> dict[str, Any]:
     """Draw, simulate, write, read back and diagnose one case blind; then score it."""
-    case = draw_case(index, seed, min_snr, duration_s)
+    case = draw_case(index, seed, min_snr, duration_s, outside_share)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
         paths = [write_run(Path(folder) / f"{name}.csv", simulate_case(case, k, duration_s))
                  for k, name in enumerate(("train", "holdout"))]
@@ -238,19 +268,21 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         oracle = (visibility(train, holdout, case.motor, case.effects)
                   if case.effects else None)
     predicted = result.verdict.split("+")
+    named = [p for p in predicted if p != UNEXPLAINED] or predicted
     gaps = {e.effect: e for e in result.effects}
     true_shrink = max((gaps[t].shrink for t in case.truth if t in gaps), default=None)
     return {
         "index": index, "truth": case.truth, "verdict": result.verdict,
-        "top1": predicted[0] in case.truth,
-        "exact": sorted(predicted) == sorted(case.truth),
+        "top1": named[0] in case.truth, "exact": sorted(named) == sorted(case.truth),
+        "unexplained": UNEXPLAINED in predicted, "noise_gap_percent": result.noise_gap_percent,
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
+        "noise_floor_percent": result.noise_floor_percent,
         "true_shrink": true_shrink,
         "visible": oracle.visible if oracle else True,
         "oracle_shrink": oracle.shrink if oracle else None,
         "oracle_p": oracle.p_value if oracle else None, "seconds": elapsed, "samples": len(holdout),
         "mode": case.mode, "kind": case.kind, "dt_s": case.dt_s, "effects": case.effects,
-        "snr": case.snr, "draws": case.draws,
+        "outside": case.outside, "snr": case.snr, "draws": case.draws,
         "scores": {e.effect: {"shrink": e.shrink, "p": e.p_value, "consistent": e.consistent,
                               "significant": e.significant} for e in result.effects},
     }
@@ -270,12 +302,33 @@ def _refused(case: Case, exc: StandError, seconds: float, samples: int) -> dict[
 
 def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Figures of the benchmark: accuracy, false alarms, shrink, confusion matrix."""
-    labels = ["none", *EFFECTS]
-    confusion: dict[str, Counter[str]] = {label: Counter() for label in labels}
+    labels = ["none", *EFFECTS, UNEXPLAINED]
+    confusion: dict[str, Counter[str]] = {label: Counter() for label in labels[:-1]}
     for row in rows:
-        confusion[row["truth"][0]][row["verdict"].split("+")[0]] += 1
+        confusion.setdefault(row["truth"][0], Counter())[row["verdict"].split("+")[0]] += 1
     none_rows = [r for r in rows if r["truth"] == ["none"]]
     effect_rows = [r for r in rows if r["truth"] != ["none"]]
+    outside = [r for r in rows if r["truth"][0].startswith("outside:")]
+    inside = [r for r in effect_rows if r not in outside]
+    pairs = [r for r in inside if len(r["truth"]) == 2]
+
+    def share(subset: list[dict[str, Any]], key: Callable[[dict[str, Any]], bool]
+              ) -> float | None:
+        return float(np.mean([key(r) for r in subset])) if subset else None
+
+    classes = {
+        "in_vocabulary_cases": len(inside),
+        "in_vocabulary_top1": share(inside, lambda r: r["top1"]),
+        "in_vocabulary_wrongly_unexplained": share(inside, lambda r: r.get("unexplained", False)),
+        "pair_cases": len(pairs), "pairs_exact": share(pairs, lambda r: r["exact"]),
+        "outside_cases": len(outside),
+        "outside_unexplained": share(outside, lambda r: r.get("unexplained", False)),
+        "outside_none": sum(r["verdict"] == "none" for r in outside),
+        "outside_by_effect": {
+            name: [sum(r.get("unexplained", False) for r in outside if r["truth"][0] == f"outside:{name}"),
+                   sum(r["truth"][0] == f"outside:{name}" for r in outside)]
+            for name in sorted({r["truth"][0].split(":", 1)[1] for r in outside})},
+    }
     shrinks = [r["true_shrink"] for r in effect_rows if r["true_shrink"] is not None]
     visible = [r for r in rows if r.get("visible", True)]
     measured = [r for r in effect_rows if r.get("snr") is not None]
@@ -298,6 +351,7 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "median_true_shrink": float(np.median(shrinks)) if shrinks else None,
         "median_seconds": float(np.median([r["seconds"] for r in rows])) if rows else None,
         "confusion": {t: dict(c) for t, c in confusion.items()},
+        **classes,
         "labels": labels,
     }
 
@@ -309,20 +363,24 @@ def confusion_table(summary: dict[str, Any]) -> str:
     short = {name: name.replace("_friction", "").replace("current_", "")[:8] for name in labels}
     head = "truth \\ verdict".ljust(18) + "".join(short[c].rjust(9) for c in labels)
     lines = [head]
-    for t in labels:
+    for t in [*labels[:-1], *sorted(set(summary["confusion"]) - set(labels))]:
         row = summary["confusion"].get(t, {})
-        lines.append(t.ljust(18) + "".join(str(row.get(c, 0)).rjust(9) for c in labels))
+        name = t.replace("outside:", "out:")[:18].ljust(18)
+        lines.append(name + "".join(str(row.get(c, 0)).rjust(9) for c in labels))
     return "\n".join(lines)
 
 
-def _run_case_args(args: tuple[int, int, float, float]) -> dict[str, Any]:
+def _run_case_args(args: tuple[int, int, float, float, float]) -> dict[str, Any]:
     return run_case(*args)
 
 
 def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = RUN_DURATION_S,
-                  min_snr: float = MIN_EFFECT_SNR) -> list[dict[str, Any]]:
-    """Run ``cases`` blind cases with ``workers`` processes; rows in case order."""
-    jobs = [(index, seed, duration_s, min_snr) for index in range(cases)]
+                  min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
+                  first: int = 0) -> list[dict[str, Any]]:
+    """Run ``cases`` blind cases (from index ``first``) with ``workers`` processes; rows
+    in case order."""
+    jobs = [(index, seed, duration_s, min_snr, outside_share)
+            for index in range(first, first + cases)]
     if workers <= 1:
         return [_run_case_args(job) for job in jobs]
     import multiprocessing
