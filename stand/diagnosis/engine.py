@@ -31,12 +31,14 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
+from stand.diagnosis.noise import UNEXPLAINED_FACTOR, noise_floor, noise_gap_percent
 from stand.diagnosis.notes import aliases, limits, single_tone_hz
 from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep, Traces
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import MIN_SHRINK, PairedTest, paired_improvement
 from stand.diagnosis.simulate import Segments, segments, simulate
 from stand.diagnosis.where import locate
+from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT, Effect
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run
@@ -45,14 +47,6 @@ from stand.runfile import Run
 ANCHOR_HORIZON_S = 0.1
 #: Fewest segments for the paired test (the horizon shrinks on short runs).
 MIN_SEGMENTS = 12
-#: The verdict word for a gap that remains beyond noise after the verdict's effects.
-UNEXPLAINED = "unexplained"
-#: A gap that remains above this many times the gap noise explains
-#: (:func:`_noise_gap`) is ``unexplained``. The noise gap is an estimate of an RMS
-#: (quantization and current noise through the free run), uncertain by a factor of
-#: about 1.5 from run to run; calibrated on in-vocabulary benchmark cases
-#: (docs/results/diagnose.md) so that their remaining gaps stay below it.
-UNEXPLAINED_FACTOR = 3.0
 #: Most effects combined in a verdict.
 MAX_EFFECTS = 3
 #: Input reconstructions tried for the nominal model (see ``ModelSpec.input_weight``).
@@ -314,8 +308,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     scores.sort(key=lambda e: e.gap_percent)
     chosen, final, steps = _select(bench, base, singles, {e.effect: e for e in scores},
                                    max_effects)
-    floor = _noise_floor(ho, bench.scale)
-    noise_gap = _noise_gap(ho, bench, base.model)
+    floor = noise_floor(ho, bench.scale)
+    noise_gap = noise_gap_percent(ho, bench.scale, bench.seg.horizon, base.model)
     names = chosen + ([UNEXPLAINED] if final.gap > UNEXPLAINED_FACTOR * noise_gap else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -447,34 +441,6 @@ def _nominal_spec(on_train: _Bench, spring: bool) -> ModelSpec:
         best = min(gaps, key=gaps.__getitem__)
         step /= 2
     return ModelSpec(input_weight=best, spring=spring)
-
-
-def _noise_floor(sig: Signals, scale: float) -> float:
-    """Gap from encoder quantization alone: central-difference noise over the speed RMS."""
-    noise = sig.quant_rad / (np.sqrt(24.0) * sig.dt_s)
-    return 100.0 * float(noise) / scale
-
-
-def _noise_gap(sig: Signals, bench: _Bench, model: FittedModel) -> float:
-    """The holdout gap that sensor noise alone gives, %: quantization of the measured
-    speed (:func:`_noise_floor`) and current noise carried through the free run.
-
-    White current noise of standard deviation ``σ_i`` drives the simulated speed as a
-    random walk, ``Kt/J·Δt·σ_i·√k`` after ``k`` samples; over a segment of ``H``
-    samples its mean square is about ``(Kt/J·Δt·σ_i)²·H/2``. ``σ_i`` is read off the
-    second difference of the current (``6σ²`` for white noise), by its median absolute
-    deviation, which the steps of a command or the motion of a loop barely move.
-    """
-    quant = _noise_floor(sig, bench.scale)
-    second = np.diff(sig.current, 2)
-    mad = float(np.median(np.abs(second - np.median(second))))
-    sigma_i = MAD_TO_SIGMA * mad / math.sqrt(6.0)
-    walk = abs(model.coef["current"]) * sig.dt_s * sigma_i * math.sqrt(bench.seg.horizon / 2)
-    return math.hypot(quant, 100.0 * walk / bench.scale)
-
-
-#: Standard deviation of normal noise per median absolute deviation.
-MAD_TO_SIGMA = 1.4826
 
 
 def _nominal_dict(model: FittedModel, kt: float | None) -> dict[str, float]:

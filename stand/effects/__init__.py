@@ -39,6 +39,8 @@ REGISTRY: dict[str, tuple[str, str]] = {
 EFFECTS: tuple[str, ...] = tuple(REGISTRY)
 #: The verdict when the nominal gap is within what noise and quantization explain.
 NONE = "none"
+#: The verdict word for a gap beyond noise that the verdict's effects leave (CONTRACT §3).
+UNEXPLAINED = "unexplained"
 
 
 def get(name: str) -> type[Effect]:
@@ -66,4 +68,4 @@ def nested_in(name: str) -> list[str]:
     return [outer.name for outer in all_effects() if name in outer.nests]
 
 
-__all__ = ["EFFECTS", "NONE", "REGISTRY", "all_effects", "get", "nested_in"]
+__all__ = ["EFFECTS", "NONE", "UNEXPLAINED", "REGISTRY", "all_effects", "get", "nested_in"]

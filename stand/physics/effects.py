@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from stand.effects import NONE, all_effects
+from stand.effects import NONE, UNEXPLAINED, all_effects
 from stand.effects.backlash import Backlash
 from stand.effects.base import Effect
 from stand.effects.cogging import Cogging
@@ -30,6 +30,8 @@ EFFECT_TYPES: dict[str, type[Effect]] = {effect.name: effect for effect in all_e
 
 #: Every name of the vocabulary, ``none`` first.
 VOCABULARY: tuple[str, ...] = (NONE, *EFFECT_TYPES)
+#: Every word a verdict may hold (CONTRACT §3): the vocabulary and ``unexplained``.
+VERDICT_WORDS: tuple[str, ...] = (*VOCABULARY, UNEXPLAINED)
 
 
 @dataclass(frozen=True)
@@ -116,5 +118,5 @@ def _build(kind: type[Effect], params: Mapping[str, Any], where: str) -> Effect:
     return effect
 
 
-__all__ = ["EFFECT_TYPES", "VOCABULARY", "Backlash", "Cogging", "CoulombFriction",
+__all__ = ["EFFECT_TYPES", "VERDICT_WORDS", "VOCABULARY", "Backlash", "Cogging", "CoulombFriction",
            "CurrentOffset", "Delay", "Effects", "StribeckFriction", "TorqueRipple"]

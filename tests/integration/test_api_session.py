@@ -13,7 +13,7 @@ from collections.abc import Iterator
 import httpx
 import pytest
 
-from stand.physics.effects import VOCABULARY
+from stand.physics.effects import VERDICT_WORDS
 from stand.procedures import SEED_ADDED_INERTIA_KGM2
 from stand.profiles import load_motor, load_stand
 from tests.integration.test_api_support import Server, serve
@@ -92,7 +92,7 @@ def test_lab_session(client: httpx.Client) -> None:
     if answer.status_code == 200:
         diag = answer.json()
         assert {"gap_percent", "where", "effects", "verdict"} <= diag.keys()
-        assert all(name in VOCABULARY for name in diag["verdict"].split("+"))
+        assert all(name in VERDICT_WORDS for name in diag["verdict"].split("+"))
 
     # 6. Voltage step (seed 001) and the step identification.
     (step_run,) = finish(client, start(client, "seed001_voltage_step", duration_s=3.0))

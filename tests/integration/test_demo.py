@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from stand.physics.effects import VOCABULARY
+from stand.physics.effects import VERDICT_WORDS
 from tests.integration.test_api_support import ROOT
 
 #: The requirement: the demo finishes in under two minutes on 2 cores, s.
@@ -35,7 +35,7 @@ def test_demo_runs_the_whole_stand(tmp_path: Path) -> None:
     # else beyond noise: the verdict must be a friction effect (Stribeck friction contains
     # Coulomb friction as its Ts -> Tc limit; which of the two wins is the diagnosis
     # module's business, tested there) that removes most of the gap.
-    assert all(name in VOCABULARY for name in result["verdict"].split("+"))
+    assert all(name in VERDICT_WORDS for name in result["verdict"].split("+"))
     assert result["verdict"].split("+")[0] in ("coulomb_friction", "stribeck_friction")
     scores = {e["effect"]: e for e in result["diagnosis"]["effects"]}
     assert scores[result["verdict"].split("+")[0]]["shrink"] > 0.5

@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from stand.diagnosis import diagnose
-from stand.diagnosis.engine import UNEXPLAINED, UNEXPLAINED_FACTOR
+from stand.diagnosis.noise import UNEXPLAINED_FACTOR
 from stand.diagnosis.plots import worst_window
+from stand.effects import UNEXPLAINED
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 #: Fan drag coefficient, N·m·s²/rad²: 2.5 mN·m at 100 rad/s.

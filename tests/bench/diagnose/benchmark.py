@@ -26,8 +26,7 @@ from typing import Any
 import numpy as np
 
 from stand.diagnosis import diagnose
-from stand.diagnosis.engine import UNEXPLAINED
-from stand.effects import EFFECTS, nested_in
+from stand.effects import EFFECTS, UNEXPLAINED, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
 from stand.physics.effects import Effects
