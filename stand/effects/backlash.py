@@ -126,3 +126,6 @@ class Backlash(Effect):
         if kt is not None:
             out["J_load"] = ratio * kt / c["current"]
         return out
+
+    # a load behind a gap is a second inertia, not a term of the one-inertia model
+    identified: ClassVar[bool] = False

@@ -140,6 +140,26 @@ class Effect:
         """Whether two specs of :meth:`grid` pick the same value within its resolution."""
         return a == b
 
+    # --- identification (stand.ident) -------------------------------------------------
+
+    #: Whether the one-inertia identification model holds the effect.
+    identified: ClassVar[bool] = True
+    #: Whether it adds no column (it moves the current instead), so that it is admitted by
+    #: a lower held-out error rather than by a test of its coefficients.
+    moves_the_current: ClassVar[bool] = False
+
+    @classmethod
+    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+        """``base`` with the effect at each value the identification tries (one spec
+        for an effect without a hyper-parameter); ``top_speed`` is the run's, rad/s."""
+        raise NotImplementedError
+
+    @classmethod
+    def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
+        """The effect's parameters from the identified coefficients ``coef(column)``:
+        torques as the current that makes them (per the ``current`` coefficient), A."""
+        raise NotImplementedError
+
 
 def need(condition: bool, where: str, text: str) -> None:
     """Raise :class:`InputError` ``"{where}: {text}"`` unless ``condition``."""

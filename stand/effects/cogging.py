@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
 from stand.effects.base import Effect, Params, Simulated, fitted, phase, ratio_ok, torque
-from stand.effects.periodic import check_order, in_phase, search_order
+from stand.effects.periodic import IDENT_MAX_ORDER, check_order, in_phase, search_order
 
 
 @dataclass(frozen=True)
@@ -70,3 +71,13 @@ class Cogging(Effect):
         out["N"] = model.spec.cogging_N
         out["phi"] = math.atan2(-math.sin(angle), -math.cos(angle))  # torque is −Tcog·sin
         return out
+
+    @classmethod
+    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+        return [replace(base, cogging_N=n) for n in range(1, IDENT_MAX_ORDER + 1)]
+
+    @classmethod
+    def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
+        s, c = coef("cog_sin"), coef("cog_cos")
+        return {"Tcog_over_Kt_A": math.hypot(s, c) / coef("current"), "N": float(spec.cogging_N or 0),
+                "phi_rad": math.atan2(c, s)}

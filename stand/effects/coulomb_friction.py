@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 from stand.diagnosis.model import FittedModel, ModelSpec
@@ -56,3 +57,11 @@ class CoulombFriction(Effect):
         out: Params = {}
         torque(-model.coef["sign"], model, kt, "Tc", out)
         return out
+
+    @classmethod
+    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+        return [replace(base, coulomb=True)]
+
+    @classmethod
+    def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
+        return {"Tc_over_Kt_A": -coef("sign") / coef("current")}

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 from stand.diagnosis.model import FittedModel, ModelSpec
@@ -46,3 +47,11 @@ class CurrentOffset(Effect):
     @classmethod
     def params(cls, model: FittedModel, kt: float | None) -> Params:
         return {"i0": -model.coef["one"] / model.coef["current"]}
+
+    @classmethod
+    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+        return [replace(base, offset=True)]
+
+    @classmethod
+    def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
+        return {"i0_A": -coef("one") / coef("current")}

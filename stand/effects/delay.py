@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 from stand.diagnosis.model import FittedModel, ModelSpec
@@ -11,6 +12,8 @@ from stand.effects.base import NO_FIT, Effect, Params, Simulated, best, fitted, 
 
 #: Largest current delay searched, samples.
 MAX_DELAY_SAMPLES = 10
+#: Largest current delay the identification tries, samples.
+IDENT_MAX_DELAY_SAMPLES = 6
 #: Largest difference of the delays found on TRAIN and HOLDOUT that still agrees, samples.
 DELAY_TOLERANCE_SAMPLES = 1
 
@@ -78,3 +81,13 @@ class Delay(Effect):
     @classmethod
     def same(cls, a: ModelSpec, b: ModelSpec) -> bool:
         return abs(a.delay - b.delay) <= DELAY_TOLERANCE_SAMPLES
+
+    moves_the_current: ClassVar[bool] = True
+
+    @classmethod
+    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+        return [replace(base, delay=k) for k in range(1, IDENT_MAX_DELAY_SAMPLES + 1)]
+
+    @classmethod
+    def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
+        return {"k": float(spec.delay)}

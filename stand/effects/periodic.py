@@ -14,6 +14,8 @@ from stand.effects.base import NO_FIT, best, need, phase
 
 #: Largest cogging / ripple order searched, cycles per revolution.
 MAX_ORDER = 60
+#: Highest order the identification tries, cycles per revolution.
+IDENT_MAX_ORDER = 48
 #: Finest position order searched relative to the encoder: at least this many counts a cycle.
 MIN_COUNTS_PER_CYCLE = 16
 #: Fewest cycles of a cogging / ripple order over the positions a run covers.

@@ -7,7 +7,8 @@ verdict, and Stribeck friction replaces Coulomb friction when it is itself signi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -27,6 +28,8 @@ STRIBECK_MIN_EXCESS = 0.15
 #: Stribeck velocities of TRAIN and HOLDOUT may differ by this factor (a flat optimum:
 #: ωs trades against the static excess).
 STRIBECK_WS_RATIO = 5.0
+#: Stribeck velocities the identification tries, as fractions of the run's top speed.
+IDENT_WS_FRACTIONS = tuple(float(f) for f in np.geomspace(0.02, 0.5, 9))
 
 
 @dataclass(frozen=True)
@@ -108,3 +111,15 @@ class StribeckFriction(Effect):
         torque(-c["sign"] - c["stribeck"], model, kt, "Ts", out)
         out["ws"] = model.spec.stribeck_ws
         return out
+
+    @classmethod
+    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+        top = max(top_speed, np.finfo(float).tiny)
+        return [replace(base, stribeck_ws=f * top) for f in IDENT_WS_FRACTIONS]
+
+    @classmethod
+    def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
+        b = coef("current")
+        tc = -coef("sign") / b
+        return {"Tc_over_Kt_A": tc, "Ts_over_Kt_A": tc - coef("stribeck") / b,
+                "ws_rad_s": float(spec.stribeck_ws or 0.0)}

@@ -8,10 +8,9 @@ reverses. Warnings are plain sentences; the command line prints them on stderr.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from stand import effects as effect_registry
 from stand.diagnosis.model import ModelSpec
 from stand.ident.estimate import Estimate
 from stand.ident.noise import noise_sigma
@@ -36,26 +35,7 @@ def effect_params(spec: ModelSpec, effects: list[str], est: Estimate) -> dict[st
 
     Torques are given as currents ``T/Kt`` (A), which the model determines without J.
     """
-    b = est.value("current")
-    out: dict[str, dict[str, float]] = {}
-    for name in effects:
-        if name == "coulomb_friction":
-            out[name] = {"Tc_over_Kt_A": -est.value("sign") / b}
-        elif name == "stribeck_friction":
-            tc = -est.value("sign") / b
-            out[name] = {"Tc_over_Kt_A": tc, "Ts_over_Kt_A": tc - est.value("stribeck") / b,
-                         "ws_rad_s": float(spec.stribeck_ws or 0.0)}
-        elif name == "current_offset":
-            out[name] = {"i0_A": -est.value("one") / b}
-        elif name in ("cogging", "torque_ripple"):
-            prefix, order = ("cog", spec.cogging_N) if name == "cogging" else ("rip", spec.ripple_N)
-            s, c = est.value(f"{prefix}_sin"), est.value(f"{prefix}_cos")
-            size = math.hypot(s, c) / b
-            key = "Tcog_over_Kt_A" if name == "cogging" else "eps"
-            out[name] = {key: size, "N": float(order or 0), "phi_rad": math.atan2(c, s)}
-        elif name == "delay":
-            out[name] = {"k": float(spec.delay)}
-    return out
+    return {name: effect_registry.get(name).ident_params(spec, est.value) for name in effects}
 
 
 def sample_correlation(current: np.ndarray) -> float:

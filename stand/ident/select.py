@@ -22,31 +22,27 @@ any offset) and named in a warning.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import f as f_dist
 from scipy.stats import t as student_t
 
+from stand import effects as effect_registry
 from stand.diagnosis.model import ModelSpec
+from stand.effects.coulomb_friction import CoulombFriction
+from stand.effects.current_offset import CurrentOffset
 from stand.errors import InputError, NotExcitedError
 from stand.ident.columns import Design
 from stand.ident.estimate import Estimate, block_count, solve_blocks
 
 #: Effects the identification model can hold (CONTRACT §3 vocabulary, backlash aside:
 #: a load behind a gap is a second inertia, not a term of the one-inertia model).
-IDENT_EFFECTS: tuple[str, ...] = ("coulomb_friction", "stribeck_friction", "cogging",
-                                  "current_offset", "delay", "torque_ripple")
+IDENT_EFFECTS: tuple[str, ...] = tuple(e.name for e in effect_registry.all_effects() if e.identified)
 #: One-sided level of the paired test that admits an effect.
 SELECT_ALPHA = 1e-3
 #: Timings of the current tried for the nominal model: the current at ``t + w·Δt``.
 INPUT_WEIGHTS: tuple[float, ...] = (0.0, 0.5, 1.0)
-#: Largest delay tried, samples.
-MAX_DELAY = 6
-#: Highest cogging / ripple order tried, cycles per revolution.
-MAX_ORDER = 48
-#: Stribeck velocities tried, as fractions of the run's top speed.
-STRIBECK_FRACTIONS = tuple(float(f) for f in np.geomspace(0.02, 0.5, 9))
 #: Least share of samples in the rarer direction for the shaft to count as reversing.
 MIN_REVERSE_SHARE = 0.02
 
@@ -144,18 +140,7 @@ class Fitter:
 
 def _candidates(design: Design, spec: ModelSpec, name: str) -> list[ModelSpec]:
     """``spec`` with effect ``name`` added, at every value of its grid."""
-    if name == "coulomb_friction":
-        return [replace(spec, coulomb=True)]
-    if name == "current_offset":
-        return [replace(spec, offset=True)]
-    if name == "stribeck_friction":
-        top = max(design.sig.top_speed, np.finfo(float).tiny)
-        return [replace(spec, stribeck_ws=f * top) for f in STRIBECK_FRACTIONS]
-    if name == "delay":
-        return [replace(spec, delay=k) for k in range(1, MAX_DELAY + 1)]
-    if name == "cogging":
-        return [replace(spec, cogging_N=n) for n in range(1, MAX_ORDER + 1)]
-    return [replace(spec, ripple_N=n) for n in range(1, MAX_ORDER + 1)]
+    return effect_registry.get(name).ident_grid(spec, design.sig.top_speed)
 
 
 def _significant(base: Estimate, cand: Estimate, tried: int) -> float:
@@ -219,12 +204,15 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False) -> Se
     design, source = fitter.design, fitter.source
     notes: list[str] = []
     reversing = reverses(design)
+    # on a shaft that never reverses, sign(ω) is a constant: Coulomb friction and a
+    # current offset are one column, reported as the friction
+    coulomb, offset = CoulombFriction.name, CurrentOffset.name
     pool = [e for e in (IDENT_EFFECTS if wanted is None else wanted)
-            if reversing or e != "current_offset"]
-    if not reversing and (wanted is None or {"coulomb_friction", "current_offset"} & set(wanted)):
+            if reversing or e != offset]
+    if not reversing and (wanted is None or {coulomb, offset} & set(wanted)):
         notes.append("never_reverses")
-        if wanted is not None and "current_offset" in wanted and "coulomb_friction" not in pool:
-            pool.append("coulomb_friction")
+        if wanted is not None and offset in wanted and coulomb not in pool:
+            pool.append(coulomb)
     nominal = fitter.best([ModelSpec(input_weight=w, spring=spring) for w in INPUT_WEIGHTS])
     if nominal is None:
         raise NotExcitedError(f"{source}: the nominal model cannot be fitted: the data do not "
@@ -244,11 +232,12 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False) -> Se
     while True:
         best: tuple[str, ModelSpec, Estimate] | None = None
         for name in pool:
-            if name in chosen or (name == "coulomb_friction" and spec.stribeck_ws is not None):
-                continue  # a Stribeck model already holds a Coulomb level
+            if name in chosen or set(effect_registry.nested_in(name)) & set(chosen):
+                continue  # a model that nests it already holds it (Stribeck: a Coulomb level)
             grid = _candidates(design, spec, name)
             found = fitter.best(grid)
-            test = _held_out_better if name == "delay" else _significant
+            effect = effect_registry.get(name)
+            test = _held_out_better if effect.moves_the_current else _significant
             if found is None or test(est, found[1], len(grid)) > SELECT_ALPHA:
                 continue
             if best is None or found[1].cv_sse.sum() < best[2].cv_sse.sum():
