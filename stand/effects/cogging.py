@@ -10,7 +10,13 @@ from typing import ClassVar
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
 from stand.effects.base import Effect, Params, Simulated, fitted, phase, ratio_ok, torque
-from stand.effects.periodic import IDENT_MAX_ORDER, check_order, in_phase, search_order
+from stand.effects.periodic import (
+    check_order,
+    harmonic_params,
+    ident_orders,
+    in_phase,
+    search_order,
+)
 
 
 @dataclass(frozen=True)
@@ -74,10 +80,8 @@ class Cogging(Effect):
 
     @classmethod
     def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
-        return [replace(base, cogging_N=n) for n in range(1, IDENT_MAX_ORDER + 1)]
+        return ident_orders(lambda n: replace(base, cogging_N=n))
 
     @classmethod
     def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
-        s, c = coef("cog_sin"), coef("cog_cos")
-        return {"Tcog_over_Kt_A": math.hypot(s, c) / coef("current"), "N": float(spec.cogging_N or 0),
-                "phi_rad": math.atan2(c, s)}
+        return harmonic_params(coef, "cog", spec.cogging_N, "Tcog_over_Kt_A")

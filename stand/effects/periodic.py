@@ -62,3 +62,18 @@ def search_order(base: ModelSpec, train: Signals, of_order: Callable[[int], Mode
     if not found:
         return NO_FIT
     return best([base.merged(of_order(n)) for n in found], train)
+
+
+def ident_orders(of_order: Callable[[int], ModelSpec]) -> list[ModelSpec]:
+    """``of_order(N)`` at each order the identification tries, 1 to ``IDENT_MAX_ORDER``
+    cycles per revolution."""
+    return [of_order(n) for n in range(1, IDENT_MAX_ORDER + 1)]
+
+
+def harmonic_params(coef: Callable[[str], float], prefix: str, order: int | None,
+                    size_key: str) -> dict[str, float]:
+    """Size (per the ``current`` coefficient), order and phase of the harmonic whose
+    columns are ``<prefix>_sin`` and ``<prefix>_cos``."""
+    s, c = coef(f"{prefix}_sin"), coef(f"{prefix}_cos")
+    return {size_key: math.hypot(s, c) / coef("current"), "N": float(order or 0),
+            "phi_rad": math.atan2(c, s)}

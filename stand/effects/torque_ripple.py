@@ -10,7 +10,13 @@ from typing import ClassVar
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
 from stand.effects.base import Effect, Params, Simulated, fitted, phase, ratio_ok
-from stand.effects.periodic import IDENT_MAX_ORDER, check_order, in_phase, search_order
+from stand.effects.periodic import (
+    check_order,
+    harmonic_params,
+    ident_orders,
+    in_phase,
+    search_order,
+)
 
 
 @dataclass(frozen=True)
@@ -73,10 +79,8 @@ class TorqueRipple(Effect):
 
     @classmethod
     def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
-        return [replace(base, ripple_N=n) for n in range(1, IDENT_MAX_ORDER + 1)]
+        return ident_orders(lambda n: replace(base, ripple_N=n))
 
     @classmethod
     def ident_params(cls, spec: ModelSpec, coef: Callable[[str], float]) -> dict[str, float]:
-        s, c = coef("rip_sin"), coef("rip_cos")
-        return {"eps": math.hypot(s, c) / coef("current"), "N": float(spec.ripple_N or 0),
-                "phi_rad": math.atan2(c, s)}
+        return harmonic_params(coef, "rip", spec.ripple_N, "eps")
