@@ -46,7 +46,7 @@ from bus.sync import (
     check_time_mode,
 )
 from bus.trace import MasterNetwork, Trace
-from stand.errors import BusError, BusTimeout, InputError, RunAborted, StandError
+from stand.errors import BusError, BusTimeout, InputError, RunAborted, StandError, StorageError
 
 log = logging.getLogger(__name__)
 
@@ -356,6 +356,8 @@ class Master:
                 for k in range(n):
                     self.window = k
                     error = self._check_nodes()
+                    if error is None and trace is not None and trace.error is not None:
+                        error = StorageError(f"{trace.error}; every drive was quick-stopped")
                     if error is not None or self._quick_stop.is_set() or (stop is not None and stop.is_set()):
                         break
                     if kernel is not None:
@@ -443,6 +445,8 @@ class Master:
             samples.late_targets = int(late.size)
         self.late_target_windows = late.tolist() if kernel is not None else []
         samples.meta["trace_frames"] = trace.frames if trace is not None else 0
+        if trace is not None and trace.error is not None:  # also a failure flushing at the end
+            samples.meta["trace_error"] = str(trace.error)
         for d, ds in zip(self.drives, samples.drives, strict=True):
             self._counters[d.id] = {"lost": ds.lost, "duplicates": ds.duplicates, "late": ds.late}
         if on_chunk is not None and done % chunk_samples:

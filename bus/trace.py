@@ -7,6 +7,7 @@ master's :class:`MasterNetwork`.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from pathlib import Path
@@ -14,13 +15,19 @@ from pathlib import Path
 import can
 import canopen
 
-from stand.errors import BusError, InputError
+from stand.errors import BusError, InputError, StorageError
 
 TRACE_SUFFIXES = (".log", ".asc", ".blf")
 
 
 class Trace(can.Listener):
-    """A thread-safe writer of one trace file."""
+    """A thread-safe writer of one trace file.
+
+    A write that fails (a full disk, a file system gone) ends the trace, never the caller:
+    frames come from python-can's bus reader thread, which an exception would end, and with
+    it every SDO answer, heartbeat and EMCY the master needs to stop the drives. The
+    failure is kept in :attr:`error` for the run to act on.
+    """
 
     def __init__(self, path: str | Path, echoed: tuple[int, ...] = ()) -> None:
         #: 11-bit ids the master's bus hands back to it: logged as they come back (with
@@ -35,6 +42,8 @@ class Trace(can.Listener):
         self._lock = threading.Lock()
         self.frames = 0
         self._closed = False
+        #: Why the trace ended early, or None.
+        self.error: StorageError | None = None
 
     def on_message_received(self, msg: can.Message) -> None:
         self._log(msg)
@@ -43,8 +52,20 @@ class Trace(can.Listener):
         with self._lock:
             if self._closed:
                 return
-            self._writer.on_message_received(msg)
+            try:
+                self._writer.on_message_received(msg)
+            except Exception as exc:  # any exception would end the bus reader
+                self._fail(exc)
+                return
             self.frames += 1
+
+    def _fail(self, exc: Exception) -> None:
+        """End the trace after a failed write (lock held)."""
+        self._closed = True
+        self.error = StorageError(f"cannot write trace file {self.path}: {exc}; the trace ends "
+                                  f"after {self.frames} frames")
+        with contextlib.suppress(Exception):  # the file is already lost; closing is best effort
+            self._writer.stop()
 
     def sent(self, msg: can.Message) -> None:
         """Log a frame the master sent (stamped now), unless the bus hands it back."""
@@ -57,7 +78,10 @@ class Trace(can.Listener):
         with self._lock:
             if not self._closed:
                 self._closed = True
-                self._writer.stop()
+                try:
+                    self._writer.stop()  # the last buffered frames are written now
+                except Exception as exc:  # reported as a failed write is
+                    self._fail(exc)
 
 
 class MasterNetwork(canopen.Network):

@@ -137,3 +137,23 @@ def test_sync_counter_wraps_at_the_overflow_value() -> None:
 def test_udp_multicast_is_refused() -> None:
     with pytest.raises(InputError, match="leaves the machine"):
         BusConfig("udp_multicast", "239.0.0.1")
+
+
+def test_a_trace_that_cannot_be_written_stops_the_run_and_not_the_bus(
+        can_config: BusConfig, tmp_path: Path) -> None:
+    """A full disk under the trace (``/dev/full``) ends the run with the drives quick-stopped;
+    the bus reader lives on, so the drives still answer SDOs afterwards."""
+    full = tmp_path / "t.log"
+    full.symlink_to("/dev/full")
+    with StandBus(STAND, can_config, simulate=True, heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+        assert bus.sim is not None
+        (procedure, drives), = plan(SHORT)
+        bus.setup(drives, procedure.sample_period_s)
+        samples = bus.run(np.zeros((2, 2000)), trace_path=full)
+        assert samples.aborted is not None and "cannot write trace file" in samples.aborted
+        assert str(full) in samples.aborted and "quick-stopped" in samples.aborted
+        assert 0 < samples.count < 2000
+        for node in bus.sim.nodes:
+            assert node.quick_stop_at is not None, node.id
+        statusword = bus.master.network[1].sdo.upload(0x6041, 0)  # the reader still hands on answers
+    assert int.from_bytes(statusword, "little") & 0x6F == 0x07  # quick stop active
