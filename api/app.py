@@ -49,7 +49,7 @@ def default_runner(settings: Settings) -> StandRunner:
     def open_bus(profile: str, seed: int | None) -> StandBus:
         return StandBus(profile, config, seed=seed, **options)
 
-    return ControllerRunner(open_bus, settings.data_dir / "runs", settings.time_mode)
+    return ControllerRunner(open_bus, settings.runs_dir, settings.time_mode)
 
 
 def create_app(settings: Settings | None = None,

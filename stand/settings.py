@@ -50,6 +50,11 @@ class Settings(BaseSettings):
         """Path of the SQLite database file."""
         return self.db_path or self.data_dir / "stand.sqlite3"
 
+    @property
+    def runs_dir(self) -> Path:
+        """Where each run on the stand writes its files: ``runs_dir/<run id>/``."""
+        return self.data_dir / "runs"
+
 
 @lru_cache(maxsize=1)
 def get_settings() -> Settings:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import shutil
 from collections.abc import AsyncIterator
 from typing import Annotated, Any, Literal, get_args
 
@@ -91,10 +92,12 @@ async def upload_run(storage: StorageDep, settings: SettingsDep, request: Reques
 
 
 @router.delete("/{run_id}", status_code=204, dependencies=[Authorized])
-async def delete_run(run_id: str, storage: StorageDep) -> Response:
-    """Delete a finished run (an upload or a job's) and its samples; 204. A queued or
-    running run is refused (422): POST /stop first. Results keep their inputs."""
-    await run_in_threadpool(storage.delete_run, run_id)
+async def delete_run(run_id: str, storage: StorageDep, settings: SettingsDep) -> Response:
+    """Delete a finished run (an upload or a job's), its samples and its files on the stand
+    (run file, CAN trace); 204. A queued or running run is refused (422): POST /stop first.
+    Results keep their inputs."""
+    await run_in_threadpool(storage.delete_run, run_id)  # an unknown id ends here (404)
+    await run_in_threadpool(shutil.rmtree, settings.runs_dir / run_id, True)
     return Response(status_code=204)
 
 

@@ -20,7 +20,7 @@ import pytest
 
 from stand.runfile import format_run
 from stand.settings import Settings
-from tests.integration.test_api_support import ROOT, Server, free_port, serve
+from tests.integration.test_api_support import ROOT, Server, free_port, serve, wait_for
 
 SHORT_RUN = {"profile": "seed000_no_load", "overrides": {"duration_s": 1.0}}
 
@@ -134,6 +134,15 @@ def test_delete_runs_and_refused_analyses_keep_no_upload(client: httpx.Client) -
                                       "overrides": {"duration_s": 600.0}}).json()["id"]
     assert client.delete(f"/runs/{live}").status_code == 422
     client.post("/stop")
+
+
+def test_deleting_a_stand_run_deletes_its_files(server: Server, client: httpx.Client) -> None:
+    run = client.post("/runs", json=SHORT_RUN).json()["id"]
+    wait_for(lambda: client.get(f"/runs/{run}").json()["state"] == "done", 60, "the short run")
+    files = server.data_dir / "runs" / run
+    assert any(files.iterdir())  # the run file (and trace) of the run on the stand
+    assert client.delete(f"/runs/{run}").status_code == 204
+    assert not files.exists()
 
 
 def test_upload_retention(tmp_path: Path) -> None:
