@@ -56,12 +56,15 @@ def test_realtime_syncs_come_from_the_kernel_where_the_bus_has_one(can_config: B
     counters = samples.sync_counter[:samples.count]
     assert samples.count == SAMPLES and counters[0] == 1
     assert np.all(counters[1:] == counters[:-1] % OVERFLOW + 1)
-    # Heard stamps: always the first window's (its SYNC goes out once the window is open),
-    # and rising. How many later windows have one is timing: on a loaded machine the
-    # kernel's SYNC k may be heard before the master opens window k (a late target).
+    # Heard stamps rise. How many windows have one is timing: on a loaded machine the
+    # kernel's SYNC k may be heard before the master opens window k (a late target), and
+    # the master's own clock may open window k + 1 before the echo of SYNC k is handed on.
+    # The first window's is certain only from the kernel: the master opens window 1 once it
+    # heard SYNC 1.
     stamps = samples.sync_stamp_s
     heard = stamps[np.isfinite(stamps)]
-    assert np.isfinite(stamps[0]) and np.all(np.diff(heard) > 0)
+    assert heard.size and np.all(np.diff(heard) > 0)
+    assert np.isfinite(stamps[0]) or not kernel
 
 
 def test_the_kernel_producer_is_refused_where_the_bus_has_none() -> None:
