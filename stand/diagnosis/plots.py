@@ -20,6 +20,7 @@ from matplotlib.axes import Axes
 
 from stand.diagnosis.engine import Traces
 from stand.diagnosis.report import Diagnosis
+from stand.diagnosis.signals import power_spectral_density
 
 #: Longest stretch of HOLDOUT shown in the speed figure, s.
 SPEED_WINDOW_S = 3.0
@@ -132,9 +133,7 @@ def _vs_position(ax: Axes, t: Traces, d: Diagnosis) -> None:
 
 
 def _spectrum(ax: Axes, t: Traces, d: Diagnosis) -> None:
-    from scipy import signal as sps
-
-    freq, power = sps.welch(t.residual, fs=1.0 / t.dt_s, nperseg=min(1024, len(t.residual)))
+    freq, power = power_spectral_density(t.residual, t.dt_s, min(1024, len(t.residual)))
     ax.semilogy(freq[1:], power[1:], color="C1")
     if d.where.band_hz:
         ax.axvspan(*d.where.band_hz, color="C1", alpha=0.15, label="band of half the energy")

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy.special import stdtr
 
 #: Family-wise false-alarm probability of one selection step (over all candidates).
 FAMILY_ALPHA = 0.01
@@ -102,5 +102,5 @@ def _t_test(d: np.ndarray, base: np.ndarray, cand: np.ndarray) -> PairedTest:
         t = np.inf if mean > 0 else -np.inf if mean < 0 else 0.0
         return PairedTest(t=t, p_value=0.0 if mean > 0 else 1.0, segments=n, shrink=shrink)
     t = mean / (spread / np.sqrt(n))
-    return PairedTest(t=float(t), p_value=float(stats.t.sf(t, n - 1)), segments=n,
+    return PairedTest(t=float(t), p_value=float(stdtr(n - 1, -t)), segments=n,
                       shrink=shrink)

@@ -20,10 +20,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal as sps
 
 from stand.diagnosis.report import Where
-from stand.diagnosis.signals import Signals, correlation_time
+from stand.diagnosis.signals import Signals, correlation_time, power_spectral_density
 
 REGIMES: tuple[str, ...] = ("low_speed", "reversal", "high_speed", "acceleration", "steady")
 #: Speeds below this fraction of the 95th-percentile speed count as low speed.
@@ -74,8 +73,9 @@ def regime_masks(sig: Signals) -> dict[str, np.ndarray]:
 
 def _order(residual: np.ndarray, theta: np.ndarray, max_order: int) -> int | None:
     orders = np.arange(1, max_order + 1)
-    phase = np.exp(-1j * np.outer(orders, theta))
-    amplitude = np.abs(phase @ (residual - residual.mean())) / len(residual)
+    angle = np.outer(orders, theta)
+    centred = residual - residual.mean()
+    amplitude = np.hypot(np.cos(angle) @ centred, np.sin(angle) @ centred) / len(residual)
     if orders.size < 5:
         return None
     best = int(np.argmax(amplitude))
@@ -83,11 +83,11 @@ def _order(residual: np.ndarray, theta: np.ndarray, max_order: int) -> int | Non
 
 
 def _band(residual: np.ndarray, dt_s: float) -> list[float]:
-    freq, power = sps.welch(residual, fs=1.0 / dt_s, nperseg=min(1024, len(residual)))
+    freq, power = power_spectral_density(residual, dt_s, min(1024, len(residual)))
     cumulative = np.cumsum(power)
     cumulative /= cumulative[-1]
     low = float(freq[np.searchsorted(cumulative, 0.25)])
-    high = float(freq[min(np.searchsorted(cumulative, 0.75), len(freq) - 1)])
+    high = float(freq[min(int(np.searchsorted(cumulative, 0.75)), len(freq) - 1)])
     return [low, high]
 
 
