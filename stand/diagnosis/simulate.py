@@ -139,6 +139,7 @@ class _Stepper:
         self.ws = spec.stribeck_ws or 1.0
         self.smooth = friction_smoothing(sig)
         self.friction = "sign" in c
+        self.stribeck = "stribeck" in c
         top = float(np.max(np.abs(sig.omega_f)))
         rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
                    (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
@@ -171,11 +172,12 @@ class _Stepper:
         if spec.ripple_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
             a = a + i * (c["rip_sin"] * mean_sin + c["rip_cos"] * mean_cos)
-        level = (self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.friction
-                 else 0.0)
+        # without a Stribeck term the friction level is the constant Coulomb level
+        level: np.ndarray | float = (
+            self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.stribeck
+            else self.fc if self.friction else 0.0)
         scale: np.ndarray | float = 1.0
         h_eff: np.ndarray | float = self.h_free
-        side = np.zeros_like(theta)
         if gap is not None:
             twist = theta - st.theta_l
             side = np.where(twist >= gap - 1e-12, 1.0, np.where(twist <= -gap + 1e-12, -1.0, 0.0))
@@ -189,11 +191,15 @@ class _Stepper:
             # shaft within the step the speed goes to the linear regime of tanh near zero.
             smooth = self.smooth
             free = omega + h_eff * scale * a
-            stop = h_eff * scale * np.maximum(level, 0.0)
-            new = np.where(np.abs(free) > stop, free - stop * np.sign(free),
-                           free / (1.0 + stop / smooth))
-            new = np.where(level < 0, free - h_eff * scale * level * np.tanh(omega / smooth),
-                           new)
+            if isinstance(level, float) and level < 0:  # a friction that drives
+                new = free - h_eff * scale * level * np.tanh(omega / smooth)
+            else:
+                stop = h_eff * scale * np.maximum(level, 0.0)
+                new = np.where(np.abs(free) > stop, free - stop * np.sign(free),
+                               free / (1.0 + stop / smooth))
+                if not isinstance(level, float):
+                    new = np.where(level < 0,
+                                   free - h_eff * scale * level * np.tanh(omega / smooth), new)
         else:
             new = omega + h_eff * scale * a
         st.theta = theta + 0.5 * h * (omega + new)
