@@ -35,6 +35,7 @@ from stand.procedures import (
     SEED_ADDED_INERTIA_KGM2,
     PortCommand,
     Procedure,
+    diagnosis_procedures,
     efficiency_procedure,
     torque_constant_procedures,
 )
@@ -67,7 +68,8 @@ class ExperimentProfile(BaseModel):
 
     name: str
     description: str = ""
-    procedure: Literal["torque_constant", "no_load", "added_inertia", "efficiency", "voltage_step"]
+    procedure: Literal["torque_constant", "no_load", "added_inertia", "efficiency", "voltage_step",
+                       "diagnosis"]
     motor: str | None = Field(None, description="motor profile (single-motor procedures)")
     stand: str | None = Field(None, description="stand profile (efficiency)")
     repeats: int = Field(5, ge=1, le=100)
@@ -170,6 +172,8 @@ def plan(experiment: ExperimentProfile) -> list[tuple[Procedure, list[DriveSetup
                 raise ProfileError(f"experiment {e.name}: step_time_s {e.step_time_s} s must lie "
                                    f"within the run's duration_s {e.duration_s} s")
             procs = [voltage_step_procedure(motor, e.step_V, e.duration_s, period, e.step_time_s)]
+        elif e.procedure == "diagnosis":
+            procs = diagnosis_procedures(motor, e.repeats, period, e.duration_s, e.seed)
         else:
             no_load, loaded = torque_constant_procedures(
                 motor, e.repeats, period, e.duration_s, e.added_inertia_kgm2, e.seed)

@@ -8,6 +8,8 @@ procedure are the same experiment.
 - :func:`torque_constant_procedures`: the no-load run and the added-inertia run of §4.2,
   repeated (5 times in the seed), the motor turning forward only (§4.1, to keep the
   no-load current of §5.1 one-signed).
+- :func:`diagnosis_procedures`: runs for the sim-to-real diagnosis (CONTRACT §3), the
+  speed command crossing zero so that the shaft turns both ways.
 - :func:`efficiency_procedure`: the two-motor run of §3.6: the input motor held at a
   constant speed while the output motor applies load steps.
 
@@ -45,6 +47,10 @@ DEFAULT_DURATION_S = 10.0
 #: Mean speed and excursion of the identification command, as fractions of the speed limit.
 SPEED_LEVEL_FRACTION = 0.5
 SPEED_EXCURSION_FRACTION = 0.25
+#: Excursion of the diagnosis command around zero speed, as a fraction of the speed limit.
+REVERSING_EXCURSION_FRACTION = 0.5
+#: Runs of a diagnosis: one to identify on (TRAIN), one to score on (HOLDOUT).
+DIAGNOSIS_REPEATS = 2
 #: Highest frequency of the excitation at 1 kHz, Hz (below the ≈30 Hz speed loop).
 DEFAULT_BAND_HZ = 10.0
 #: Highest frequency of the excitation as a fraction of the Nyquist frequency.
@@ -176,6 +182,32 @@ def torque_constant_procedures(profile: MotorProfile, repeats: int = SEED_REPEAT
                              f"noise, forward only; {load}"),
             ))
     return runs["no_load"], runs["added_inertia"]
+
+
+def diagnosis_procedures(profile: MotorProfile, repeats: int = DIAGNOSIS_REPEATS,
+                         period_s: float = DEFAULT_PERIOD_S,
+                         duration_s: float = DEFAULT_DURATION_S, seed: int = 0
+                         ) -> list[Procedure]:
+    """Runs for the sim-to-real diagnosis (CONTRACT §3): ``repeats`` no-load runs under a
+    band-limited noise speed command around zero, ``±REVERSING_EXCURSION_FRACTION`` of
+    the speed limit, each with its own excitation.
+
+    The shaft turns both ways, so that ``sign(ω)`` is not a constant: Coulomb friction
+    and a current offset are then separate torques. On the forward-only runs of
+    :func:`torque_constant_procedures` they are one constant, and a diagnosis can only
+    name the pair. The first run is TRAIN, the second HOLDOUT.
+    """
+    if repeats < 1:
+        raise InputError(f"repeats must be >= 1, got {repeats}")
+    samples = int(round(duration_s / period_s))
+    amplitude = REVERSING_EXCURSION_FRACTION * profile.limits.speed_rad_s
+    return [Procedure(f"diagnosis_{k + 1}", period_s,
+                      (PortCommand("speed", multisine(samples, period_s, 0.0, amplitude,
+                                                      _band_hz(period_s),
+                                                      seed=seed * 1000 + 500 + k)),),
+                      description=(f"speed command 0 ± {amplitude:.0f} rad/s band-limited "
+                                   "noise, both ways; no load"))
+            for k in range(repeats)]
 
 
 def seed_driver(profile: MotorProfile) -> MotorProfile:
