@@ -3,7 +3,8 @@
 * ``speed.png``: measured and simulated speed on HOLDOUT, nominal and with the verdict:
   the whole run, or its ``SPEED_WINDOW_S`` where the nominal model errs most;
 * ``residual_vs_velocity.png``: the nominal model's residual against velocity;
-* ``residual_vs_position.png``: the residual against position modulo one revolution;
+* ``residual_vs_position.png``: the residual against position modulo one revolution
+  (modulo one cycle of its position order, when it has one);
 * ``residual_spectrum.png``: the residual's power spectrum.
 
 The scatter figures draw the residual's mean in bins over the points (the curve an
@@ -120,12 +121,17 @@ def _vs_velocity(ax: Axes, t: Traces, d: Diagnosis) -> None:
 
 
 def _vs_position(ax: Axes, t: Traces, d: Diagnosis) -> None:
+    """Against position modulo one revolution, or, when the residual has a position order
+    ``N``, modulo one cycle of it (``N·θ`` modulo 2π): ``CURVE_BINS`` bins over a whole
+    revolution cannot show a curve of 24 cycles, and folded on the cycle every cycle's
+    points fall on one curve."""
     pick = _thin(len(t.theta))
-    angle = np.mod(t.theta, 2 * math.pi)
+    order = d.where.cycles_per_rev
+    angle = np.mod((order or 1) * t.theta, 2 * math.pi)
     ax.plot(angle[pick], t.residual[pick], ".", ms=1.5, alpha=0.3, color="C2")
     _curve(ax, angle, t.residual, "k")
-    order = d.where.cycles_per_rev
-    ax.set_xlabel("position modulo one revolution, rad")
+    ax.set_xlabel(f"position × {order} modulo 2π (one cycle of the order), rad" if order
+                  else "position modulo one revolution, rad")
     ax.set_ylabel("residual acceleration, rad/s²")
     ax.set_title("nominal residual against position"
                  + (f" ({order} cycles/rev)" if order else "") + f" ({_verdict(d)})",
