@@ -185,6 +185,10 @@ def sample_current(current: np.ndarray, weight: float) -> np.ndarray:
     return at_samples(interval_current(current, weight))
 
 
+#: Where ``sin(x)/x`` is taken at x = 0 (as ``np.sinc`` does).
+_EPS = float(np.finfo(float).eps)
+
+
 def periodic_mean(order: int, theta: np.ndarray,
                   step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Means of ``sin(N·θ)`` and ``cos(N·θ)`` while ``θ`` moves linearly from ``theta``
@@ -194,8 +198,13 @@ def periodic_mean(order: int, theta: np.ndarray,
     sample period at speed; its value at the sample instant is then aliased, while its
     mean over the period is what changes the sampled speed."""
     middle = order * (theta + 0.5 * step)
-    damping = np.sinc(order * step / (2.0 * np.pi))  # np.sinc(x) = sin(πx)/(πx)
+    # np.sinc(N·step/2π), without its per-call overhead (the simulation calls this at
+    # every sub-step): sin(x)/x of x = π·(N·step/2π), and 1 at x = 0
+    x = np.pi * (order * step / (2.0 * np.pi))
+    x = np.where(x, x, _EPS)
+    damping = np.sin(x) / x
     return np.sin(middle) * damping, np.cos(middle) * damping
+
 
 
 def _periodic_column(order: int, sig: Signals, sine: bool) -> np.ndarray:
@@ -506,13 +515,13 @@ def _batch_sums(specs: list[ModelSpec], sig: Signals) -> QSums:
     a, o = common.shape[1], len(own[0])
     G = np.empty((len(specs), a + o, a + o))
     G[:, :a, :a] = common.T @ common
-    if o:
-        mine = np.column_stack([lay[k] for lay, keys in zip(layouts, own, strict=True)
-                                for k in keys])[keep].reshape(-1, len(specs), o)
-        cross = (common.T @ mine.reshape(len(mine), -1)).reshape(a, len(specs), o)
-        G[:, :a, a:] = cross.transpose(1, 0, 2)
-        G[:, a:, :a] = cross.transpose(1, 2, 0)
-        by_spec = mine.transpose(1, 2, 0)
+    if o:  # each spec's own columns as rows (a copy of contiguous rows, not a transpose)
+        mine = np.stack([lay[k] for lay, keys in zip(layouts, own, strict=True)
+                         for k in keys])[:, keep]
+        cross = (mine @ common).reshape(len(specs), o, a)
+        G[:, :a, a:] = cross.transpose(0, 2, 1)
+        G[:, a:, :a] = cross
+        by_spec = mine.reshape(len(specs), o, -1)
         G[:, a:, a:] = by_spec @ by_spec.transpose(0, 2, 1)
     # from the order [states, shared, 1, own] to each spec's [states, its columns, 1]
     place = {k: 2 * nx + j for j, k in enumerate(shared)}
