@@ -36,11 +36,13 @@ class ProgressBar:
     """A one-line progress bar on ``stream`` (redrawn in place on a terminal; otherwise a
     line every tenth of the batch)."""
 
-    def __init__(self, stream: TextIO = sys.stderr) -> None:
-        self.stream = stream
+    def __init__(self, stream: TextIO | None = None) -> None:
+        # sys.stderr when the bar is made, not when the module was imported (a test's
+        # captured stream then, closed by now)
+        self.stream = sys.stderr if stream is None else stream
         self.start = time.monotonic()
         self.last = -PROGRESS_INTERVAL_S
-        self.tty = stream.isatty()
+        self.tty = self.stream.isatty()
         self.tenth = -1
 
     def __call__(self, done: int, total: int) -> None:
