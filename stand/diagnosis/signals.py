@@ -111,35 +111,35 @@ def lowpass(values: np.ndarray, axis: int = 0) -> np.ndarray:
     (fewer on short runs), the same to rounding.
 
     Each pass solves the filter's difference equation as a banded triangular system
-    (LAPACK ``dtbtrs``, all columns at once), so the diagnosis needs neither
+    (LAPACK ``dtbtrs``, a few signals at a time), so the diagnosis needs neither
     ``scipy.signal`` nor what it imports (about half a second of start-up)."""
     x = np.moveaxis(np.asarray(values, dtype=float), axis, -1)
     rows = x.reshape(-1, x.shape[-1])
     pad = min(PAD_SAMPLES, rows.shape[1] - 1)
+    band = np.zeros((3, rows.shape[1] + 2 * pad))  # the denominator below the diagonal
+    band[1, :-1] = _A[1]
+    band[2, :-2] = _A[2]
     out = np.empty_like(rows)
     for first in range(0, len(rows), CHUNK_ROWS):  # a few rows at a time stay in cache
         chunk = rows[first:first + CHUNK_ROWS]
         ext = np.concatenate([2.0 * chunk[:, :1] - chunk[:, pad:0:-1], chunk,
                               2.0 * chunk[:, -1:] - chunk[:, -2:-pad - 2:-1]], axis=1)
-        both = _pass(_pass(ext)[:, ::-1])[:, ::-1]
+        both = _pass(_pass(ext, band)[:, ::-1], band)[:, ::-1]
         out[first:first + CHUNK_ROWS] = both[:, pad:both.shape[1] - pad]
     return np.moveaxis(out.reshape(x.shape), -1, axis)
 
 
-def _pass(x: np.ndarray) -> np.ndarray:
+def _pass(x: np.ndarray, band: np.ndarray) -> np.ndarray:
     """One causal pass of the filter along the rows of ``x`` (columns, time), started
     from the steady state of each row's first value: ``y[n] + a1·y[n−1] + a2·y[n−2] =
     b0·x[n] + b1·x[n−1] + b2·x[n−2]``, the initial state entering the first two
-    samples."""
+    samples (``band``: the left side's lower band, LAPACK band storage)."""
     rhs = _B[0] * x
     term = _B[1] * x[:, :-1]
     rhs[:, 1:] += term
     np.multiply(x[:, :-2], _B[2], out=term[:, :-1])
     rhs[:, 2:] += term[:, :-1]
     rhs[:, :2] += x[:, :1] * _ZI
-    band = np.zeros((3, x.shape[1]))
-    band[1, :-1] = _A[1]
-    band[2, :-2] = _A[2]
     # a unit diagonal (a0 = 1): forward substitution without divisions, never singular
     y = lapack.dtbtrs(band, rhs.T, uplo="L", diag="U", overwrite_b=1)[0]
     return np.asarray(y).T
