@@ -131,7 +131,8 @@ def test_torque_actual_value_reads_the_torque(drive: tuple[SimStand, canopen.Rem
     time.sleep(SETTLE_S)
     torque, current = node.sdo[cia402.TORQUE_ACTUAL].raw, node.sdo[cia402.CURRENT_ACTUAL].raw
     # Rated torque 0x6076 is the torque at rated current 0x6075: both per mille read the
-    # same; the current loop holds the target within the sensor's noise (10 mA = 10 ‰).
+    # same; the current loop holds the target within the sensor's noise (σ 10 mA = 10 ‰;
+    # 5 σ: 3 σ failed here once in some hundred runs, as a normal tail does).
     assert torque == current
-    assert abs(torque - target) <= 30
+    assert abs(torque - target) <= 50
     assert sim.nodes[0].syncs == 20
