@@ -23,7 +23,8 @@ RunKind = Literal["single", "step", "reducer"]
 
 #: Required and optional columns of each kind of run file (CONTRACT §1).
 COLUMNS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "single": (("time_s", "current_A", "position_rad"), ("voltage_V", "velocity_rad_s")),
+    "single": (("time_s", "current_A", "position_rad"),
+               ("voltage_V", "velocity_rad_s", "speed_target_rad_s")),
     "step": (("time_s", "voltage_V", "velocity_rad_s"), ("current_A", "position_rad")),
     "reducer": (
         ("time_s", "current_in_A", "position_in_rad", "current_out_A", "position_out_rad"),

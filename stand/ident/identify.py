@@ -32,6 +32,7 @@ from stand.ident.estimate import Estimate, block_count, solve_blocks
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
 from stand.ident.select import Fitter, parse_effects, select
+from stand.ident.speed_loop import speed_loop, with_gain_uncertainty
 from stand.jsonable import JsonResult
 from stand.runfile import Run
 
@@ -254,17 +255,37 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
         sig = replace(sig, current=sig.current - no_load_current_A, cache={})
     sigma = noise_sigma(sig.current)
     h = half_width or auto_half_width(sig.current, sigma)
-    design = Design.build(sig, h, 2 * h + 1 + INSTRUMENT_MARGIN)
     first = "bc" if estimator == "auto" else estimator
-    chosen = select(Fitter(design, first, run.source), wanted)
+    # the measured current, and under a speed loop whose law holds, the current over
+    # each period from that law (its own timing): the smaller held-out error decides
+    currents: list[tuple[np.ndarray, float | None]] = [(sig.current, None)]
+    loop = speed_loop(run)
+    if loop is not None and loop.holds:
+        currents.append((loop.period_current - no_load_current_A, 0.0))
+    elif loop is not None:
+        warnings.append(loop.message)
+    fits = []
+    for current, timing in currents:
+        design = Design.build(replace(sig, current=current, cache={}), h,
+                              2 * h + 1 + INSTRUMENT_MARGIN)
+        chosen = select(Fitter(design, first, run.source), wanted, input_weight=timing)
+        fits.append((float(chosen.estimate.cv_sse.sum()), timing is not None, design, chosen))
+    _, from_loop, design, chosen = min(fits, key=lambda fit: fit[0])
     est = chosen.estimate
     if estimator == "auto":
         estimator, est = _pick_estimator(design, chosen.spec, est, run.source)
+    if loop is not None and loop.holds:
+        if from_loop:
+            est = with_gain_uncertainty(est, "current", loop.kp_rel_sd)
+        else:
+            warnings.append("the current reconstructed from the PI speed law fits the motion "
+                            "worse than the sampled current (the loop may saturate between "
+                            "samples): the sampled current is used, and Kt/J may be high by "
+                            "up to π·f_loop·Δt")
     params = effect_params(chosen.spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes)
-    timing = chosen.spec.delay + chosen.spec.input_weight
     return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
-                   warnings, estimator, timing)
+                   warnings, estimator, chosen.spec.delay + chosen.spec.input_weight)
 
 
 def _pick_estimator(design: Design, spec: ModelSpec, bc: Estimate,

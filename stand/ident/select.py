@@ -187,7 +187,8 @@ def _held_out_better(base: Estimate, cand: Estimate, tried: int) -> float:
     return min(1.0, tried * float(student_t.sf(t, len(d) - 1)))
 
 
-def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False) -> Selection:
+def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
+           input_weight: float | None = None) -> Selection:
     """Choose (``wanted`` is ``None``) or fit the named effects with ``fitter``.
 
     Parameters
@@ -200,6 +201,10 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False) -> Se
         Keep seed 000's ``C·θ`` term. Off by default: a motor on a stand has no spring,
         and on a shaft that turns one way the angle is a ramp that the term uses to
         absorb slow drifts (and extrapolates badly to a held-out block).
+    input_weight : float or None
+        The current's timing when it is known (a current reconstructed over each period,
+        :mod:`stand.ident.speed_loop`): the nominal model takes it, and ``auto`` does not
+        look for a delay. None: picked from :data:`INPUT_WEIGHTS`.
     """
     design, source = fitter.design, fitter.source
     notes: list[str] = []
@@ -208,12 +213,15 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False) -> Se
     # current offset are one column, reported as the friction
     coulomb, offset = CoulombFriction.name, CurrentOffset.name
     pool = [e for e in (IDENT_EFFECTS if wanted is None else wanted)
-            if reversing or e != offset]
+            if (reversing or e != offset)
+            and (input_weight is None or wanted is not None
+                 or not effect_registry.get(e).moves_the_current)]
     if not reversing and (wanted is None or {coulomb, offset} & set(wanted)):
         notes.append("never_reverses")
         if wanted is not None and offset in wanted and coulomb not in pool:
             pool.append(coulomb)
-    nominal = fitter.best([ModelSpec(input_weight=w, spring=spring) for w in INPUT_WEIGHTS])
+    weights = INPUT_WEIGHTS if input_weight is None else (input_weight,)
+    nominal = fitter.best([ModelSpec(input_weight=w, spring=spring) for w in weights])
     if nominal is None:
         raise NotExcitedError(f"{source}: the nominal model cannot be fitted: the data do not "
                               "excite it; excite the motor with a varying command")

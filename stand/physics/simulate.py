@@ -32,8 +32,9 @@ def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: floa
     -------
     Run
         Single-motor run: ``time_s``, ``current_A``, ``position_rad``, ``voltage_V``,
-        ``velocity_rad_s``; ``meta['true_velocity_rad_s']`` and ``meta['true_current_A']``
-        hold the unmeasured truth.
+        ``velocity_rad_s`` (and ``speed_target_rad_s`` in speed mode);
+        ``meta['true_velocity_rad_s']`` and ``meta['true_current_A']`` hold the
+        unmeasured truth.
     """
     n = _commands([(mode, command)], 1)
     out = np.empty((4, n))
@@ -44,11 +45,14 @@ def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: floa
         truth[:, k] = (plant.omega, plant.armature.i)
         plant.command(mode, target)
         plant.advance(dt_s)
-    run = check_columns({
+    columns = {
         "time_s": np.arange(n) * dt_s,
         "current_A": out[0], "position_rad": out[1],
         "voltage_V": out[2], "velocity_rad_s": out[3],
-    }, "single", "<simulated>")
+    }
+    if mode == "speed":  # the target held over the period after each sample
+        columns["speed_target_rad_s"] = np.asarray(command, dtype=float)
+    run = check_columns(columns, "single", "<simulated>")
     run.meta.update(true_velocity_rad_s=truth[0], true_current_A=truth[1])
     return run
 

@@ -15,6 +15,7 @@ sampling hides between samples, :mod:`docs/results/ident.md`).
     python tests/bench/bench_ident_coverage.py --cases 110 --seed 1 --workers 2
     python tests/bench/bench_ident_coverage.py --kt --stands 20 --seed 1   # 5 + 5 repeats
     python tests/bench/bench_ident_coverage.py --timing   # the current between samples
+    python tests/bench/bench_ident_coverage.py --mode speed --no-target   # one mode, no target
 """
 
 from __future__ import annotations
@@ -99,9 +100,15 @@ def draw_effect(name: str, rng: np.random.Generator, stand: dict[str, Any]) -> d
             "phi": rng.uniform(0, 2 * math.pi)}
 
 
+#: Columns written to each run file; ``--no-target`` leaves out the speed target (a
+#: stand that does not record what it commanded).
+RUN_COLUMNS = ["time_s", "current_A", "position_rad", "speed_target_rad_s"]
+
+
 def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: int,
-             added_inertia: float = 0.0, folder: Path | None = None) -> Any:
-    """One run of ``stand``, written as CSV and read back."""
+             added_inertia: float = 0.0, folder: Path | None = None,
+             target: bool = True) -> Any:
+    """One run of ``stand``, written as CSV (:data:`RUN_COLUMNS`) and read back."""
     motor = stand["motor"]
     if added_inertia:
         motor = MotorParams(R=motor.R, L=motor.L, Kt=motor.Kt, J=motor.J + added_inertia,
@@ -114,17 +121,32 @@ def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: 
     run = simulate_motor(plant, stand["mode"], command, stand["dt"])
     with tempfile.TemporaryDirectory(prefix="ident-bench-") as tmp:
         path = write_run(Path(folder or tmp) / f"run{seed}.csv",
-                         {c: run[c] for c in ("time_s", "current_A", "position_rad")})
+                         {c: run[c] for c in RUN_COLUMNS
+                          if c in run and (target or c != "speed_target_rad_s")})
         return read_run(path, "single")
 
 
-def run_case(index: int, seed: int) -> dict[str, Any]:
+def case_mode(index: int, seed: int) -> str:
+    """Drive mode of case ``index`` (the same draw as :func:`run_case`)."""
+    return str(draw_stand(np.random.default_rng([seed, index]))["mode"])
+
+
+def kt_mode(index: int, seed: int) -> str:
+    """Drive mode of stand ``index`` of the ``--kt`` part."""
+    return str(draw_stand(np.random.default_rng([seed, index, 1]))["mode"])
+
+
+#: Start of the warning of a speed loop whose current is not reconstructed.
+NOT_RECONSTRUCTED = "the PI speed law explains"
+
+
+def run_case(index: int, seed: int, target: bool = True) -> dict[str, Any]:
     """Draw, simulate and identify case ``index``; score Kt/J and its interval."""
     rng = np.random.default_rng([seed, index])
     stand = draw_stand(rng)
     names = EFFECT_SETS[index % len(EFFECT_SETS)]
     effects = {name: draw_effect(name, rng, stand) for name in names}
-    run = simulate(stand, effects, seed * 100_003 + index)
+    run = simulate(stand, effects, seed * 100_003 + index, target=target)
     truth = stand["motor"].Kt / stand["motor"].J
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"], "loop_hz": stand["loop_hz"]}
@@ -158,10 +180,13 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
         for name in r["truth_effects"] or ["none"]:
             per_effect[name].append(r)
     speed = [r for r in ok if r["mode"] == "speed"]
+    plain = [r for r in speed if any(w.startswith(NOT_RECONSTRUCTED) for w in r["warnings"])]
     hidden = [r["error_rel"] - math.pi * r["loop_hz"] * r["dt_s"] for r in speed]
     return {
         "cases": len(rows), "refused": len(rows) - len(ok), "all": figures(ok),
         "per_mode": {m: figures([r for r in ok if r["mode"] == m]) for m in ("current", "speed")},
+        "speed_reconstructed": figures([r for r in speed if r not in plain]),
+        "speed_not_reconstructed": figures(plain),
         "per_effect": {k: figures(v) for k, v in sorted(per_effect.items())},
         "estimators": {e: sum(r["estimator"] == e for r in ok) for e in ("bc", "iv", "ls")},
         "speed_error_less_pi_f_dt_median": float(np.median(hidden)) if hidden else None,
@@ -169,7 +194,7 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def run_kt_case(index: int, seed: int) -> dict[str, Any]:
+def run_kt_case(index: int, seed: int, target: bool = True) -> dict[str, Any]:
     """Torque constant from 5 + 5 repeats on one random stand with one random effect."""
     rng = np.random.default_rng([seed, index, 1])
     stand = draw_stand(rng)
@@ -177,8 +202,8 @@ def run_kt_case(index: int, seed: int) -> dict[str, Any]:
     effects = {name: draw_effect(name, rng, stand) for name in names}
     added = stand["motor"].J * _log_uniform(rng, 0.5, 2.0)
     base = seed * 100_003 + 1000 * index
-    free = [simulate(stand, effects, base + k) for k in range(5)]
-    loaded = [simulate(stand, effects, base + 10 + k, added) for k in range(5)]
+    free = [simulate(stand, effects, base + k, target=target) for k in range(5)]
+    loaded = [simulate(stand, effects, base + 10 + k, added, target=target) for k in range(5)]
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"]}
     try:
@@ -210,7 +235,8 @@ def timing_figures() -> dict[str, Any]:
     return out
 
 
-def _pool_map(function: Any, jobs: list[tuple[int, int]], workers: int) -> list[dict[str, Any]]:
+def _pool_map(function: Any, jobs: list[tuple[int, int, bool]],
+              workers: int) -> list[dict[str, Any]]:
     if workers <= 1:
         return [function(*job) for job in jobs]
     import multiprocessing
@@ -226,6 +252,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--kt", action="store_true", help="torque constant, 5 + 5 repeats")
+    parser.add_argument("--mode", choices=("current", "speed"),
+                        help="only the cases (stands) of this drive mode")
+    parser.add_argument("--no-target", action="store_true",
+                        help="leave the speed target out of the run files")
     parser.add_argument("--rows", type=Path, help="write every case as JSON lines here")
     parser.add_argument("--timing", action="store_true",
                         help="noise-free Kt/J error: point samples against the held current")
@@ -235,7 +265,9 @@ def main(argv: list[str] | None = None) -> int:
         print()
         return 0
     if args.kt:
-        rows = _pool_map(run_kt_case, [(k, args.seed) for k in range(args.stands)], args.workers)
+        jobs = [(k, args.seed, not args.no_target) for k in range(args.stands)
+                if args.mode is None or kt_mode(k, args.seed) == args.mode]
+        rows = _pool_map(run_kt_case, jobs, args.workers)
         ok = [r for r in rows if "error_rel" in r]
         err = np.array([abs(r["error_rel"]) for r in ok])
         summary: dict[str, Any] = {
@@ -247,7 +279,9 @@ def main(argv: list[str] | None = None) -> int:
                                            if r["mode"] == m] or [np.nan]))
                          for m in ("current", "speed")}}
     else:
-        rows = _pool_map(run_case, [(k, args.seed) for k in range(args.cases)], args.workers)
+        jobs = [(k, args.seed, not args.no_target) for k in range(args.cases)
+                if args.mode is None or case_mode(k, args.seed) == args.mode]
+        rows = _pool_map(run_case, jobs, args.workers)
         summary = summarize(rows)
     if args.rows:
         args.rows.write_text("".join(json.dumps(r, default=str) + "\n" for r in rows))

@@ -1,0 +1,249 @@
+"""The current between samples under a PI speed loop, from the loop law.
+
+A drive in speed mode sets its current command from the held speed target ``r`` (the
+master's target over the period after each sample) by a PI law::
+
+    i(t) = kp·(r − ω(t)) + I(t),      I' = ki·(r − ω)
+
+Each change of the target kicks the current by ``kp·Δr``, and the loop pulls it back
+faster than the samples follow, so the sampled current misses part of the current that
+accelerated the rotor (about ``π·f_loop·Δt`` of it, ``f_loop = kp·Kt/(2π·J)``); in one
+run this is indistinguishable from inertia. When the run holds the target
+(``speed_target_rad_s``), the law gives that current exactly from what is measured:
+
+- **Gains.** At the sample instants ``i_n = kp·(r_{n−1} − ω_n) + ki·(R_n − θ_n) + c``
+  with ``R_n = Σ_{m<n} r_m·Δt`` and ``c`` the integrator's start plus any sensor offset.
+  Linear least squares over the samples away from target changes (where ``ω`` has a
+  kink) with ``ω_n`` the five-point central difference of the angle gives ``kp``,
+  ``ki``, ``c``; the current samples' delay is the shift (0 … ``MAX_DELAY``) with the
+  least residual.
+- **Check.** The law must explain the measured current to within its noise: a loop
+  that saturates (current or voltage limit) or another control law leaves a residual
+  well above the noise, and then nothing is reconstructed (a warning says why).
+- **Current over each period.** ``ī_n = kp·(r_n − ω̄_n) + c + ki·(R_n − θ_n + θ_0) +
+  ki·Δt/2·(r_n − ω̄_n)`` with ``ω̄_n = (θ_{n+1} − θ_n)/Δt``, the period's exact mean speed.
+  It needs no instantaneous speed and carries no current-sensor noise.
+
+What the reconstruction leaves out is the drive's current loop: its lag makes the
+measured samples trail the command and inflates ``kp`` by about ``2π·f_loop·τ``. The
+gains are also fitted with a lag term (the acceleration as a column); the difference
+between the two fits enters the uncertainty of Kt/J.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from stand.ident.estimate import Estimate
+from stand.ident.noise import noise_sigma
+from stand.runfile import Run
+
+#: Column of a single-motor run with the speed target held over the period after each
+#: sample, rad/s (CONTRACT §1, optional).
+TARGET_COLUMN = "speed_target_rad_s"
+#: Largest delay of the current samples tried, samples.
+MAX_DELAY = 6
+#: Largest ratio of the loop law's residual RMS to the current noise (from the
+#: sample-to-sample differences, which a fast loop's current inflates a little) for
+#: which the law counts as holding.
+MAX_RESIDUAL_RATIO = 1.5
+#: Samples within this many noise deviations of the largest |current| may be at the
+#: drive's current limit; it is reached when the law goes beyond it by as much at
+#: ``MIN_LIMIT_SAMPLES`` of them.
+LIMIT_SIGMAS = 4.0
+MIN_LIMIT_SAMPLES = 3
+#: Points per period on which a clipped current is averaged.
+SUBSTEPS = 64
+#: Fewest rows for the gains' fit.
+MIN_ROWS = 50
+
+
+@dataclass(frozen=True)
+class SpeedLoop:
+    """A PI speed loop fitted to one run, and the current it gives over each period.
+
+    Attributes
+    ----------
+    kp : float
+        Proportional gain, A per rad/s.
+    ki : float
+        Integral gain, A per rad.
+    offset_A : float
+        Integrator start plus sensor offset, A.
+    delay : int
+        Samples the current samples lag the encoder.
+    residual_ratio : float
+        RMS of the law's residual over the current noise.
+    kp_rel_sd : float
+        Relative standard uncertainty of ``kp`` (statistical and current-loop lag).
+    period_current : ndarray
+        Current over the period after each sample, A (the last repeats the one before),
+        or an empty array when the law does not hold.
+    message : str
+        Why nothing was reconstructed, or empty.
+    """
+
+    kp: float
+    ki: float
+    offset_A: float
+    delay: int
+    residual_ratio: float
+    kp_rel_sd: float
+    period_current: np.ndarray
+    message: str = ""
+
+    @property
+    def holds(self) -> bool:
+        """The law explains the measured current (the reconstruction is usable)."""
+        return len(self.period_current) > 0
+
+
+#: Five-point differences of the angle at a sample (first, second derivative; times
+#: ``1/(12·Δt)`` and ``1/(12·Δt²)``), over samples ``n − 2 … n + 2`` (central) or
+#: ``n − 4 … n`` (left; the right one is its mirror).
+CENTRAL = (np.array([1.0, -8.0, 0.0, 8.0, -1.0]), np.array([-1.0, 16.0, -30.0, 16.0, -1.0]))
+LEFT = (np.array([3.0, -16.0, 36.0, -48.0, 25.0]), np.array([11.0, -56.0, 114.0, -104.0, 35.0]))
+
+
+def kink_free_derivatives(theta: np.ndarray, target: np.ndarray,
+                          dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Speed and acceleration at the samples from five-point differences of the angle
+    that do not straddle a change of the target (the acceleration jumps there): central
+    where they can, else one-sided. NaN where no stencil fits."""
+    n = len(theta)
+    kinks = np.zeros(n + 8, dtype=bool)
+    kinks[np.flatnonzero(np.diff(target) != 0) + 1] = True
+    omega, alpha = np.full(n, np.nan), np.full(n, np.nan)
+    stencils = [(np.arange(-2, 3), CENTRAL, 1.0), (np.arange(-4, 1), LEFT, 1.0),
+                (np.arange(4, -1, -1), LEFT, -1.0)]
+    filled = np.zeros(n, dtype=bool)
+    for offsets, (first, second), sign in stencils:
+        lo, hi = int(offsets.min()), int(offsets.max())
+        rows = np.arange(max(0, -lo), n - max(0, hi))
+        inside = np.zeros(len(rows), dtype=bool)
+        for k in range(lo + 1, hi):   # a kink strictly inside the stencil's span
+            inside |= kinks[rows + k]
+        rows = rows[~inside & ~filled[rows]]
+        window = theta[rows[:, None] + offsets[None, :]]
+        omega[rows] = sign * window @ first / (12 * dt)
+        alpha[rows] = window @ second / (12 * dt**2)
+        filled[rows] = True
+    return omega, alpha
+
+
+def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
+                   dt: float) -> SpeedLoop:
+    """Fit the PI law to a speed-mode run and reconstruct the current over each period.
+
+    Parameters
+    ----------
+    theta : ndarray
+        Measured angle, rad.
+    current : ndarray
+        Measured current, A.
+    target : ndarray
+        Speed target held over the period after each sample, rad/s.
+    dt : float
+        Sample period, s.
+    """
+    n = len(theta)
+    omega, alpha = kink_free_derivatives(theta, target, dt)
+    integral = np.concatenate([[0.0], np.cumsum(target[:-1] * dt)])
+    error_int = integral - (theta - theta[0])
+    previous = np.concatenate([target[:1], target[:-1]])
+    sigma = noise_sigma(current)
+    # samples at the largest |current| may sit at the drive's current limit: fitted
+    # without them, and the limit is taken as reached where the law exceeds it there
+    limit = float(np.max(np.abs(current)))
+    at_limit = np.abs(current) >= limit - LIMIT_SIGMAS * sigma
+    keep = np.isfinite(omega)
+    keep[0] = False   # read before the first target: the one before it is unknown
+    keep[n - MAX_DELAY:] = False
+    X = np.column_stack([previous - omega, error_int, np.ones(n), alpha])
+    best: tuple[float, int, np.ndarray] | None = None
+    for delay in range(MAX_DELAY + 1):
+        rows = np.flatnonzero(keep[:n - delay] & ~at_limit[delay:])
+        if len(rows) < MIN_ROWS:
+            continue
+        y = current[rows + delay]
+        beta, *_ = np.linalg.lstsq(X[rows], y, rcond=None)
+        rss = float(np.sum((y - X[rows] @ beta) ** 2)) / (len(rows) - 4)
+        if best is None or rss < best[0]:
+            best = (rss, delay, rows)
+    if best is None or not sigma > 0:
+        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
+                         "too few samples away from the current limit (or a noise-free "
+                         "current): the speed loop's gains cannot be fitted")
+    mean_square, delay, rows = best
+    y = current[rows + delay]
+    ratio = float(np.sqrt(mean_square) / sigma)
+    plain, *_ = np.linalg.lstsq(X[rows, :3], y, rcond=None)
+    lagged, *_ = np.linalg.lstsq(X[rows], y, rcond=None)
+    kp, ki, c = (float(v) for v in plain)
+    limited = np.flatnonzero(keep[:n - delay] & at_limit[delay:])
+    beyond = np.abs(X[limited] @ lagged) > limit + LIMIT_SIGMAS * sigma
+    saturates = int(np.sum(beyond)) >= MIN_LIMIT_SAMPLES
+    if not (kp > 0 and ratio <= MAX_RESIDUAL_RATIO):
+        return SpeedLoop(kp, ki, c, delay, ratio, np.inf, np.empty(0),
+                         f"the PI speed law explains the current only to {ratio:.2g} times its "
+                         f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
+                         "saturates its voltage or follows another law, so the current between "
+                         "samples is not reconstructed and Kt/J may be high by up to "
+                         "π·f_loop·Δt")
+    cov = np.linalg.inv(X[rows, :3].T @ X[rows, :3]) * mean_square
+    # with the current loop's lag τ: i ≈ i_cmd − τ·i_cmd' = … + τ·kp·α − τ·ki·(r − ω)
+    tau = float(lagged[3] / lagged[0]) if lagged[0] > 0 else -1.0
+    kp_other = kp
+    if 0.0 <= tau * ki < 1.0:
+        kp, kp_other = float(lagged[0] + tau * lagged[1]), kp
+        ki, c = float(lagged[1]), float(lagged[2])
+    rel_sd = float(np.hypot(np.sqrt(cov[0, 0]) / kp, (kp_other - kp) / kp))
+    period = _period_current(theta, target, omega, error_int, dt, kp, ki, c,
+                             limit if saturates else np.inf)
+    return SpeedLoop(kp, ki, c, delay, ratio, rel_sd, period)
+
+
+def _period_current(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,
+                    error_int: np.ndarray, dt: float, kp: float, ki: float, c: float,
+                    limit: float) -> np.ndarray:
+    """Mean of the law's current over the period after each sample, clipped at
+    ``±limit`` (the last period repeats the one before).
+
+    Unclipped, the mean is exact from the period's mean speed. Where the law's current
+    at a period's start exceeds the limit, the speed within the period is taken as the
+    quadratic through the speeds at its ends and its mean, and the law's current on
+    ``SUBSTEPS`` points of it is clipped and averaged.
+    """
+    mean_speed = np.diff(theta) / dt
+    r = target[:-1]
+    period = kp * (r - mean_speed) + c + ki * error_int[:-1] + ki * dt / 2 * (r - mean_speed)
+    if np.isfinite(limit):
+        start = kp * (r - omega[:-1]) + c + ki * error_int[:-1]
+        w0, w1 = omega[:-1], omega[1:]
+        for k in np.flatnonzero(np.isfinite(w0) & np.isfinite(w1) & (np.abs(start) > limit)):
+            s = (np.arange(SUBSTEPS) + 0.5) / SUBSTEPS
+            # quadratic ω(s) with ω(0) = w0, ω(1) = w1 and mean ω̄
+            b2 = 3 * (w0[k] + w1[k]) - 6 * mean_speed[k]
+            speed = w0[k] + (w1[k] - w0[k] - b2) * s + b2 * s**2
+            drift = ki * dt * np.cumsum(r[k] - speed) / SUBSTEPS
+            law = kp * (r[k] - speed) + c + ki * error_int[k] + drift
+            period[k] = float(np.mean(np.clip(law, -limit, limit)))
+    return np.concatenate([period, period[-1:]])
+
+
+def speed_loop(run: Run) -> SpeedLoop | None:
+    """The PI loop of ``run`` when it holds the speed target, else None."""
+    if TARGET_COLUMN not in run:
+        return None
+    return fit_speed_loop(run["position_rad"], run["current_A"], run[TARGET_COLUMN], run.dt_s)
+
+
+def with_gain_uncertainty(est: Estimate, name: str, rel_sd: float) -> Estimate:
+    """``est`` with a relative standard uncertainty ``rel_sd`` of the current's scale
+    added to the variance of coefficient ``name`` (Kt/J scales as 1/kp)."""
+    k = est.names.index(name)
+    cov = est.cov.copy()
+    cov[k, k] += (rel_sd * est.beta[k]) ** 2
+    return replace(est, cov=cov)

@@ -1,0 +1,67 @@
+"""The current between samples under a PI speed loop, from the loop law (issue 19)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from stand.excitation import excitation
+from stand.ident.identify import identify_run
+from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
+from stand.physics.effects import Effects
+from stand.physics.parts import DriveParams, MotorParams, SensorParams
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
+from stand.runfile import Run
+
+MOTOR = MotorParams(R=2.0, L=1e-3, Kt=0.05, J=2e-5, D=4e-5)
+KT_OVER_J = MOTOR.Kt / MOTOR.J
+
+
+def speed_run(loop_hz: float, current_limit_A: float = 50.0, dt: float = 3e-3,
+              seed: int = 3) -> tuple[Run, DriveParams]:
+    """Reversing PRBS speed steps of ±60 rad/s under a PI loop of ``loop_hz``."""
+    kp = 2 * math.pi * loop_hz * MOTOR.J / MOTOR.Kt
+    drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=current_limit_A,
+                        speed_kp=kp, speed_ki=kp * 2 * math.pi * loop_hz / 5)
+    plant = MotorPlant(MOTOR, drive, SensorParams(encoder_lines=2000, current_noise_A=0.005),
+                       Effects(), seed=seed)
+    command = excitation("prbs", int(6.0 / dt), dt, 0.0, 60.0, int(0.2 / dt), seed=seed)
+    return simulate_motor(plant, "speed", command, dt), drive
+
+
+def test_loop_gains_are_found_from_the_target() -> None:
+    # The law i = kp·(r − ω) + I holds at the samples; the fitted gain is within 1 % of
+    # the drive's (the current loop's 0.2 ms lag is the main error, 2π·f·τ ≈ 0.6 %).
+    run, drive = speed_run(5.0)
+    loop = speed_loop(run)
+    assert loop is not None and loop.holds
+    assert abs(loop.kp / drive.speed_kp - 1) < 0.01
+    assert loop.residual_ratio < 1.1
+
+
+def test_reconstructed_current_removes_the_loop_bias() -> None:
+    # At 5 Hz and 3 ms the sampled current misses about π·f·Δt ≈ 4.7 % of the current
+    # that accelerates the rotor: without the target Kt/J is high by more than 2 %, with
+    # it within 1 %. (Its interval does not yet hold the truth: docs/results/ident.md.)
+    run, _ = speed_run(5.0)
+    plain = Run({k: v for k, v in run.columns.items() if k != TARGET_COLUMN}, "plain")
+    assert identify_run(plain).Kt_over_J / KT_OVER_J - 1 > 0.02
+    r = identify_run(run)
+    assert abs(r.Kt_over_J / KT_OVER_J - 1) < 0.01
+
+
+def test_saturated_loop_is_not_reconstructed() -> None:
+    # A current limit far below the kicks: the law does not explain the current, nothing
+    # is reconstructed and a warning says so.
+    run, _ = speed_run(20.0, current_limit_A=0.3)
+    loop = speed_loop(run)
+    assert loop is not None and not loop.holds
+    assert any("PI speed law" in w for w in identify_run(run).warnings)
+
+
+def test_target_column_is_optional() -> None:
+    run, _ = speed_run(5.0)
+    assert speed_loop(Run({k: v for k, v in run.columns.items() if k != TARGET_COLUMN})) is None
+    assert np.all(np.abs(run[TARGET_COLUMN]) == 60.0)
