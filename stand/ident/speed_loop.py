@@ -24,10 +24,12 @@ run this is indistinguishable from inertia. When the run holds the target
   ki·Δt/2·(r_n − ω̄_n)`` with ``ω̄_n = (θ_{n+1} − θ_n)/Δt``, the period's exact mean speed.
   It needs no instantaneous speed and carries no current-sensor noise.
 
-What the reconstruction leaves out is the drive's current loop: its lag makes the
-measured samples trail the command and inflates ``kp`` by about ``2π·f_loop·τ``. The
-gains are also fitted with a lag term (the acceleration as a column); the difference
-between the two fits enters the uncertainty of Kt/J.
+What the reconstruction leaves out is the drive's own delay between speed and current
+(its current loop's lag, the speed loop's computation): the samples read
+``i ≈ i_cmd − τ·i_cmd'``, which inflates the fitted ``kp`` by about ``2π·f_loop·τ``.
+The gains are also fitted with a lag term (the acceleration as a column); on the
+loop's exponential transients lag and gain trade off, so the difference between the
+two fits enters the uncertainty of Kt/J.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from stand.diagnosis.signals import quantization_step
 from stand.ident.estimate import Estimate
 from stand.ident.noise import noise_sigma
 from stand.runfile import Run
@@ -45,9 +48,9 @@ from stand.runfile import Run
 TARGET_COLUMN = "speed_target_rad_s"
 #: Largest delay of the current samples tried, samples.
 MAX_DELAY = 6
-#: Largest ratio of the loop law's residual RMS to the current noise (from the
-#: sample-to-sample differences, which a fast loop's current inflates a little) for
-#: which the law counts as holding.
+#: Largest RMS of the loop law's residual over the noise expected in each row (the
+#: current's, from its sample-to-sample differences, which a fast loop inflates a little,
+#: and the encoder step's through the speed) for which the law counts as holding.
 MAX_RESIDUAL_RATIO = 1.5
 #: Samples within this many noise deviations of the largest |current| may be at the
 #: drive's current limit; it is reached when the law goes beyond it by as much at
@@ -108,14 +111,17 @@ LEFT = (np.array([3.0, -16.0, 36.0, -48.0, 25.0]), np.array([11.0, -56.0, 114.0,
 
 
 def kink_free_derivatives(theta: np.ndarray, target: np.ndarray,
-                          dt: float) -> tuple[np.ndarray, np.ndarray]:
+                          dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Speed and acceleration at the samples from five-point differences of the angle
     that do not straddle a change of the target (the acceleration jumps there): central
-    where they can, else one-sided. NaN where no stencil fits."""
+    where they can, else one-sided. NaN where no stencil fits. The third array is the
+    speed's sensitivity to independent angle errors (its error's standard deviation per
+    rad of angle error), 1/s."""
     n = len(theta)
     kinks = np.zeros(n + 8, dtype=bool)
     kinks[np.flatnonzero(np.diff(target) != 0) + 1] = True
     omega, alpha = np.full(n, np.nan), np.full(n, np.nan)
+    spread = np.full(n, np.nan)
     stencils = [(np.arange(-2, 3), CENTRAL, 1.0), (np.arange(-4, 1), LEFT, 1.0),
                 (np.arange(4, -1, -1), LEFT, -1.0)]
     filled = np.zeros(n, dtype=bool)
@@ -129,12 +135,13 @@ def kink_free_derivatives(theta: np.ndarray, target: np.ndarray,
         window = theta[rows[:, None] + offsets[None, :]]
         omega[rows] = sign * window @ first / (12 * dt)
         alpha[rows] = window @ second / (12 * dt**2)
+        spread[rows] = float(np.linalg.norm(first)) / (12 * dt)
         filled[rows] = True
-    return omega, alpha
+    return omega, alpha, spread
 
 
 def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
-                   dt: float) -> SpeedLoop:
+                   dt: float, quant_rad: float = 0.0) -> SpeedLoop:
     """Fit the PI law to a speed-mode run and reconstruct the current over each period.
 
     Parameters
@@ -147,9 +154,13 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         Speed target held over the period after each sample, rad/s.
     dt : float
         Sample period, s.
+    quant_rad : float
+        Encoder step, rad: its error (``q/√12``) enters the speed at each sample, and
+        the law's residual is weighed by the current and speed noise of its row.
     """
     n = len(theta)
-    omega, alpha = kink_free_derivatives(theta, target, dt)
+    omega, alpha, spread = kink_free_derivatives(theta, target, dt)
+    angle_sd = quant_rad / np.sqrt(12.0)
     integral = np.concatenate([[0.0], np.cumsum(target[:-1] * dt)])
     error_int = integral - (theta - theta[0])
     previous = np.concatenate([target[:1], target[:-1]])
@@ -162,25 +173,36 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
     keep[0] = False   # read before the first target: the one before it is unknown
     keep[n - MAX_DELAY:] = False
     X = np.column_stack([previous - omega, error_int, np.ones(n), alpha])
+    if not sigma > 0:
+        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
+                         "a noise-free current: the speed loop's gains cannot be fitted")
+
+    def weighted(rows: np.ndarray, y: np.ndarray, columns: int
+                 ) -> tuple[np.ndarray, np.ndarray, float]:
+        """Weighted least squares (weights from the rows' noise at the plain fit's kp)."""
+        beta, *_ = np.linalg.lstsq(X[rows, :columns], y, rcond=None)
+        sd = np.sqrt(sigma**2 + (beta[0] * angle_sd * spread[rows]) ** 2)
+        A, b = X[rows, :columns] / sd[:, None], y / sd
+        beta, *_ = np.linalg.lstsq(A, b, rcond=None)
+        return beta, A, float(np.sum((b - A @ beta) ** 2)) / (len(rows) - columns)
+
     best: tuple[float, int, np.ndarray] | None = None
     for delay in range(MAX_DELAY + 1):
         rows = np.flatnonzero(keep[:n - delay] & ~at_limit[delay:])
         if len(rows) < MIN_ROWS:
             continue
-        y = current[rows + delay]
-        beta, *_ = np.linalg.lstsq(X[rows], y, rcond=None)
-        rss = float(np.sum((y - X[rows] @ beta) ** 2)) / (len(rows) - 4)
-        if best is None or rss < best[0]:
-            best = (rss, delay, rows)
-    if best is None or not sigma > 0:
+        mean_square = weighted(rows, current[rows + delay], 4)[2]
+        if best is None or mean_square < best[0]:
+            best = (mean_square, delay, rows)
+    if best is None:
         return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
-                         "too few samples away from the current limit (or a noise-free "
-                         "current): the speed loop's gains cannot be fitted")
-    mean_square, delay, rows = best
+                         "too few samples away from the current limit: the speed loop's "
+                         "gains cannot be fitted")
+    _, delay, rows = best
     y = current[rows + delay]
-    ratio = float(np.sqrt(mean_square) / sigma)
-    plain, *_ = np.linalg.lstsq(X[rows, :3], y, rcond=None)
-    lagged, *_ = np.linalg.lstsq(X[rows], y, rcond=None)
+    plain, A, mean_square = weighted(rows, y, 3)
+    lagged, _, lag_square = weighted(rows, y, 4)
+    ratio = float(np.sqrt(lag_square))
     kp, ki, c = (float(v) for v in plain)
     limited = np.flatnonzero(keep[:n - delay] & at_limit[delay:])
     beyond = np.abs(X[limited] @ lagged) > limit + LIMIT_SIGMAS * sigma
@@ -192,8 +214,10 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
                          "saturates its voltage or follows another law, so the current between "
                          "samples is not reconstructed and Kt/J may be high by up to "
                          "π·f_loop·Δt")
-    cov = np.linalg.inv(X[rows, :3].T @ X[rows, :3]) * mean_square
-    # with the current loop's lag τ: i ≈ i_cmd − τ·i_cmd' = … + τ·kp·α − τ·ki·(r − ω)
+    cov = np.linalg.inv(A.T @ A) * mean_square
+    # with the drive's delay τ (current loop, computation): i ≈ i_cmd − τ·i_cmd'
+    # = … + τ·kp·α − τ·ki·(r − ω); on exponential transients τ and kp trade off, so the
+    # two fits' difference enters the uncertainty
     tau = float(lagged[3] / lagged[0]) if lagged[0] > 0 else -1.0
     kp_other = kp
     if 0.0 <= tau * ki < 1.0:
@@ -237,7 +261,9 @@ def speed_loop(run: Run) -> SpeedLoop | None:
     """The PI loop of ``run`` when it holds the speed target, else None."""
     if TARGET_COLUMN not in run:
         return None
-    return fit_speed_loop(run["position_rad"], run["current_A"], run[TARGET_COLUMN], run.dt_s)
+    theta = run["position_rad"]
+    return fit_speed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
+                          quantization_step(theta))
 
 
 def with_gain_uncertainty(est: Estimate, name: str, rel_sd: float) -> Estimate:
