@@ -15,8 +15,8 @@ run this is indistinguishable from inertia. When the run holds the target
   with ``R_n = Σ_{m<n} r_m·Δt`` and ``c`` the integrator's start plus any sensor offset.
   Linear least squares over the samples away from target changes (where ``ω`` has a
   kink) with ``ω_n`` the five-point central difference of the angle gives ``kp``,
-  ``ki``, ``c``; the current samples' delay is the shift (0 … ``MAX_DELAY``) with the
-  least residual.
+  ``ki``, ``c``; the current samples' delay is the shortest shift (0 … ``MAX_DELAY``)
+  that no longer one fits clearly better.
 - **Check.** The law must explain the measured current to within its noise: a loop
   that saturates (current or voltage limit) or another control law leaves a residual
   well above the noise, and then nothing is reconstructed (a warning says why).
@@ -48,6 +48,9 @@ from stand.runfile import Run
 TARGET_COLUMN = "speed_target_rad_s"
 #: Largest delay of the current samples tried, samples.
 MAX_DELAY = 6
+#: A longer delay is taken when it lowers the law's mean square residual by this many
+#: of its standard deviations.
+DELAY_SIGMAS = 3.0
 #: Largest RMS of the loop law's residual over the noise expected in each row (the
 #: current's, from its sample-to-sample differences, which a fast loop inflates a little,
 #: and the encoder step's through the speed) for which the law counts as holding.
@@ -192,7 +195,9 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         if len(rows) < MIN_ROWS:
             continue
         mean_square = weighted(rows, current[rows + delay], 4)[2]
-        if best is None or mean_square < best[0]:
+        # a longer delay must fit better beyond the sampling error of a mean square
+        # (relative standard deviation √(2/rows)), else the shorter one stays
+        if best is None or mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows))):
             best = (mean_square, delay, rows)
     if best is None:
         return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
