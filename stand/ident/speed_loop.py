@@ -13,16 +13,20 @@ run this is indistinguishable from inertia. When the run holds the target
 
 - **Gains.** At the sample instants ``i_n = kp·(r_{n−1} − ω_n) + ki·(R_n − θ_n) + c``
   with ``R_n = Σ_{m<n} r_m·Δt`` and ``c`` the integrator's start plus any sensor offset.
-  Linear least squares over the samples away from target changes (where ``ω`` has a
-  kink) with ``ω_n`` the five-point central difference of the angle gives ``kp``,
-  ``ki``, ``c``; the current samples' delay is the shortest shift (0 … ``MAX_DELAY``)
-  that no longer one fits clearly better.
+  Weighted least squares gives ``kp``, ``ki``, ``c``, with ``ω_n`` from five-point
+  differences of the angle that do not straddle a target change (``ω`` has a kink
+  there), each row weighed by the current noise and the encoder step's error through
+  its speed difference. The current samples' delay is the shortest shift
+  (0 … ``MAX_DELAY``) that no longer one fits clearly better.
 - **Check.** The law must explain the measured current to within its noise: a loop
-  that saturates (current or voltage limit) or another control law leaves a residual
-  well above the noise, and then nothing is reconstructed (a warning says why).
+  that saturates its voltage, or another control law, leaves a residual well above the
+  noise, and then nothing is reconstructed (a warning says why). Samples at the largest
+  current are left out of the fit; where the law goes beyond that current there, it is
+  the drive's current limit.
 - **Current over each period.** ``ī_n = kp·(r_n − ω̄_n) + c + ki·(R_n − θ_n + θ_0) +
   ki·Δt/2·(r_n − ω̄_n)`` with ``ω̄_n = (θ_{n+1} − θ_n)/Δt``, the period's exact mean speed.
-  It needs no instantaneous speed and carries no current-sensor noise.
+  It needs no instantaneous speed and carries no current-sensor noise. Within a period
+  whose start goes beyond the current limit the law is clipped at it.
 
 What the reconstruction leaves out is the drive's own delay between speed and current
 (its current loop's lag, the speed loop's computation): the samples read
