@@ -200,14 +200,9 @@ def check_limits(procedure: Procedure, drives: Sequence[DriveSetup]) -> None:
                              "nothing was sent")
 
 
-def run_columns(kind: str, samples: Samples, start: int = 0, stop: int | None = None,
-                speed_target: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Run-file columns (CONTRACT §1) of the bus samples ``start:stop``, gaps left out.
-
-    ``speed_target``: a single motor's speed targets (one a sample, sent after it is
-    read), written as ``speed_target_rad_s`` (the identification reconstructs the speed
-    loop's current between samples from them).
-    """
+def run_columns(kind: str, samples: Samples, start: int = 0,
+                stop: int | None = None) -> dict[str, np.ndarray]:
+    """Run-file columns (CONTRACT §1) of the bus samples ``start:stop``, gaps left out."""
     stop = samples.count if stop is None else stop
     rows = slice(start, stop)
     drives = samples.drives
@@ -235,8 +230,6 @@ def run_columns(kind: str, samples: Samples, start: int = 0, stop: int | None = 
         values = col(drives[0], name)
         if values is not None:
             out[column] = values
-    if speed_target is not None and kind == "single":
-        out["speed_target_rad_s"] = np.asarray(speed_target, dtype=float)[rows][valid]
     return out
 
 
@@ -349,9 +342,7 @@ class StandController:
 
     def _write(self, procedure: Procedure, samples: Samples, out: Path | None, trace: str | None,
                wall_s: float) -> RunResult:
-        port = procedure.commands[0]
-        columns = run_columns(procedure.kind, samples,
-                              speed_target=port.values if port.mode == "speed" else None)
+        columns = run_columns(procedure.kind, samples)
         path = None
         if out is not None and len(columns["time_s"]):
             target = out / f"{procedure.name}.csv"
