@@ -31,7 +31,15 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
-from stand.diagnosis.noise import UNEXPLAINED_FACTOR, noise_floor, noise_gap_percent
+from stand.diagnosis.noise import (
+    APPROXIMATION_SHARE,
+    UNEXPLAINED_FACTOR,
+    beyond_noise_percent,
+    explained_percent,
+    noise_floor,
+    noise_gap_percent,
+    unexplained,
+)
 from stand.diagnosis.notes import aliases, limits, single_tone_hz
 from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep, Traces
 from stand.diagnosis.signals import Signals, prepare
@@ -310,7 +318,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                                    max_effects)
     floor = noise_floor(ho, bench.scale)
     noise_gap = noise_gap_percent(ho, bench.scale, bench.seg.horizon, base.model)
-    names = chosen + ([UNEXPLAINED] if final.gap > UNEXPLAINED_FACTOR * noise_gap else [])
+    left = unexplained(base.gap, final.gap, noise_gap)
+    names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
                + (f", gap with it {final.gap:.1f} %" if chosen else ""))
@@ -335,7 +344,23 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         residual_where=locate(equation_residual(final.model, ho), ho),
         model={**_nominal_dict(final.model, kt), **verdict_params},
         noise_gap_percent=noise_gap,
-        notes=limits(tr, bench.tone_hz) + aliases(bench.aliased), steps=steps), traces
+        notes=(limits(tr, bench.tone_hz) + aliases(bench.aliased)
+               + _approximation_note(base.gap, final.gap, noise_gap, left)),
+        steps=steps), traces
+
+
+def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float,
+                        left: bool) -> list[str]:
+    """Why a remainder beyond noise is not ``unexplained``: it is smaller than what the
+    verdict's effects explain (:func:`stand.diagnosis.noise.unexplained`)."""
+    if left or verdict_gap <= UNEXPLAINED_FACTOR * noise_gap:
+        return []
+    beyond = beyond_noise_percent(verdict_gap, noise_gap)
+    return [f"the verdict's effects leave {beyond:.2f} % beyond the noise "
+            f"({noise_gap:.2f} %), less than {APPROXIMATION_SHARE:g} times the "
+            f"{explained_percent(nominal_gap, verdict_gap):.2f} % they explain: taken as "
+            "their models' approximation of the physics, not as another effect; "
+            "residual_where locates it"]
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],

@@ -35,7 +35,7 @@ from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, read_run, write_run
 from tests.bench.diagnose.oracle import visibility
-from tests.bench.diagnose.outside import OUTSIDE, draw_outside, outside_torque
+from tests.bench.diagnose.outside import HELD_OUT, OUTSIDE, draw_outside, outside_torque
 from tests.bench.diagnose.snr import effect_snr
 
 #: Length of each of TRAIN and HOLDOUT, s.
@@ -90,8 +90,13 @@ class Case:
     outside: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
+#: The outside sets a benchmark can draw from (:mod:`tests.bench.diagnose.outside`).
+OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT}
+
+
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
-              duration_s: float = RUN_DURATION_S, outside_share: float = 0.0) -> Case:
+              duration_s: float = RUN_DURATION_S, outside_share: float = 0.0,
+              outside_set: str = "tuning") -> Case:
     """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible).
 
     Which effects a case has is drawn once. Their parameters are drawn again (up to
@@ -104,12 +109,13 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     With ``outside_share``, that share of the cases (drawn from a stream of their own,
     so the other cases stay as without it) has one effect outside the vocabulary
     instead (:mod:`tests.bench.diagnose.outside`), of a strength in ``STRENGTH_RANGE``,
-    drawn again like the others until it shows above the noise."""
+    drawn again like the others until it shows above the noise; ``outside_set`` names
+    the set it comes from (``tuning`` or ``held_out``, :data:`OUTSIDE_SETS`)."""
     rng = np.random.default_rng([seed, index])
     stand = _draw_stand(index, seed, rng)
     side = np.random.default_rng([seed, index, 11])
     if side.random() < outside_share:
-        return _draw_outside_case(stand, side, min_snr, duration_s)
+        return _draw_outside_case(stand, side, min_snr, duration_s, OUTSIDE_SETS[outside_set])
     u = rng.random()
     count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
     names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
@@ -135,14 +141,15 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
 
 
 def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
-                       duration_s: float) -> Case:
-    """``stand`` with one outside effect, drawn until its SNR reaches ``min_snr``."""
-    name = str(rng.choice(sorted(OUTSIDE)))
+                       duration_s: float, names: dict[str, Any]) -> Case:
+    """``stand`` with one outside effect of ``names``, drawn until its SNR reaches
+    ``min_snr``."""
+    name = str(rng.choice(sorted(names)))
     case = stand
     for draw in range(1, EFFECT_DRAWS + 1):
         strength = _log_uniform(rng, *STRENGTH_RANGE)
         params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand), stand.current_ref,
-                              stand.omega_ref, strength)
+                              stand.omega_ref, strength, stand.motor.J, stand.dt_s)
         case = replace(stand, outside={name: params}, truth=[f"outside:{name}"], draws=draw)
         case.snr = case_snr(case, duration_s)
         if case.snr >= min_snr:
@@ -251,9 +258,10 @@ def _simulate(case: Case, which: int, duration_s: float,
 
 
 def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
-             min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0) -> dict[str, Any]:
+             min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
+             outside_set: str = "tuning") -> dict[str, Any]:
     """Draw, simulate, write, read back and diagnose one case blind; then score it."""
-    case = draw_case(index, seed, min_snr, duration_s, outside_share)
+    case = draw_case(index, seed, min_snr, duration_s, outside_share, outside_set)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
         paths = [write_run(Path(folder) / f"{name}.csv", simulate_case(case, k, duration_s))
                  for k, name in enumerate(("train", "holdout"))]
@@ -319,6 +327,12 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "in_vocabulary_cases": len(inside),
         "in_vocabulary_top1": share(inside, lambda r: r["top1"]),
         "in_vocabulary_wrongly_unexplained": share(inside, lambda r: r.get("unexplained", False)),
+        # of those: the planted effects all named (and unexplained after them), and
+        # nothing named at all (a missed effect called unexplained instead of none)
+        "in_vocabulary_unexplained_after_exact": sum(
+            r.get("unexplained", False) and r["exact"] for r in inside),
+        "in_vocabulary_unexplained_nothing_named": sum(
+            r["verdict"] == UNEXPLAINED for r in inside),
         "pair_cases": len(pairs), "pairs_exact": share(pairs, lambda r: r["exact"]),
         "outside_cases": len(outside),
         "outside_unexplained": share(outside, lambda r: r.get("unexplained", False)),
@@ -369,16 +383,16 @@ def confusion_table(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _run_case_args(args: tuple[int, int, float, float, float]) -> dict[str, Any]:
+def _run_case_args(args: tuple[int, int, float, float, float, str]) -> dict[str, Any]:
     return run_case(*args)
 
 
 def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = RUN_DURATION_S,
                   min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
-                  first: int = 0) -> list[dict[str, Any]]:
+                  first: int = 0, outside_set: str = "tuning") -> list[dict[str, Any]]:
     """Run ``cases`` blind cases (from index ``first``) with ``workers`` processes; rows
     in case order."""
-    jobs = [(index, seed, duration_s, min_snr, outside_share)
+    jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set)
             for index in range(first, first + cases)]
     if workers <= 1:
         return [_run_case_args(job) for job in jobs]
