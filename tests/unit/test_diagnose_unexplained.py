@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from stand.diagnosis import diagnose
-from stand.diagnosis.noise import UNEXPLAINED_FACTOR
+from stand.diagnosis.noise import APPROXIMATION_SHARE, UNEXPLAINED_FACTOR, unexplained
 from stand.diagnosis.plots import worst_window
 from stand.effects import UNEXPLAINED
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
@@ -33,6 +33,35 @@ def test_an_effect_outside_the_vocabulary_is_unexplained_never_none() -> None:
     assert result.verdict_gap_percent > UNEXPLAINED_FACTOR * result.noise_gap_percent
     assert result.residual_where is not None
     assert set(result.residual_where.velocity_sign_energy) == {"positive", "negative"}
+
+
+def test_an_effect_outside_the_vocabulary_beside_a_named_one_is_unexplained_after_it() -> None:
+    # a fan drag four times that of the test above (10 mN·m at 100 rad/s) beside the
+    # planted Coulomb friction: what remains is far more than the friction explains
+    def fan(theta: float, omega: float, i: float, t: float) -> float:
+        return 4 * _fan(theta, omega, i, t)
+
+    result = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]},
+                                  extra_torque=fan), kt=MOTOR.Kt)
+    assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
+
+
+def test_a_remainder_beyond_noise_smaller_than_what_the_effects_explain_is_their_model() -> None:
+    noise = 0.2
+    # nothing named: beyond the noise factor is unexplained, within it is not
+    assert unexplained(10.0, 10.0, noise)
+    assert not unexplained(0.5, 0.5, noise)
+    # a named effect took the gap from 10 % to 1 %: 0.98 % beyond noise against the
+    # 9.95 % it explains is its model's approximation
+    assert not unexplained(10.0, 1.0, noise)
+    # from 5 % to 4.5 %: 4.5 % left beyond noise against 2.2 % explained is not
+    assert unexplained(5.0, 4.5, noise)
+    # the boundary: left beyond noise == APPROXIMATION_SHARE times explained
+    left = 3.0
+    verdict = (left**2 + noise**2) ** 0.5
+    nominal = (verdict**2 + (left / APPROXIMATION_SHARE) ** 2) ** 0.5
+    assert unexplained(nominal * 0.999, verdict, noise)
+    assert not unexplained(nominal * 1.001, verdict, noise)
 
 
 def test_an_effect_of_the_vocabulary_leaves_nothing_unexplained() -> None:
