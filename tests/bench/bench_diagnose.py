@@ -15,6 +15,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 # the harness lives in the checkout's tests package, beside (not in) the product
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -47,19 +48,32 @@ def main(argv: list[str] | None = None) -> int:
                         "rule, or the set held out of all tuning")
     parser.add_argument("--first", type=int, default=0, help="index of the first case")
     parser.add_argument("--no-timing", action="store_true", help="skip the timing case")
-    parser.add_argument("--rows", help="write every case as JSON lines to this file")
+    parser.add_argument("--rows", help="write every case as JSON lines to this file, each "
+                        "as soon as it is in")
+    parser.add_argument("--summarize", nargs="+", metavar="ROWS",
+                        help="run nothing: print the figures of the cases in these --rows files")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr,
-                         outside_share=args.outside_share, first=args.first,
-                         outside_set=args.outside_set)
+    if args.summarize:
+        rows = [json.loads(line) for path in args.summarize
+                for line in Path(path).read_text(encoding="utf-8").splitlines() if line]
+        args.no_timing = True
+    else:
+        out = open(args.rows, "w", encoding="utf-8") if args.rows else None  # noqa: SIM115
+
+        def keep(row: dict[str, Any]) -> None:
+            if out:
+                out.write(json.dumps(row) + "\n")
+                out.flush()
+
+        rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr,
+                             outside_share=args.outside_share, first=args.first,
+                             outside_set=args.outside_set, on_row=keep)
+        if out:
+            out.close()
     wall = time.perf_counter() - start
     summary = summarize_cases(rows)
     timing = None if args.no_timing else timing_case()
-    if args.rows:
-        with open(args.rows, "w", encoding="utf-8") as out:
-            for row in rows:
-                out.write(json.dumps(row) + "\n")
     print(confusion_table(summary))
     print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
     print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
@@ -84,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
           f"exactly, {summary['in_vocabulary_unexplained_nothing_named']} with nothing named); "
           f"pairs exact "
           f"{_percent(summary['pairs_exact'])} of {summary['pair_cases']}")
-    print(f"outside the vocabulary ({args.outside_set} set): unexplained "
+    source = "the rows given" if args.summarize else f"{args.outside_set} set"
+    print(f"outside the vocabulary ({source}): unexplained "
           f"{_percent(summary['outside_unexplained'])} of "
           f"{summary['outside_cases']}, none {summary['outside_none']}; by effect "
           f"(unexplained, cases): {summary['outside_by_effect']}")

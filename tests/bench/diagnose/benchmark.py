@@ -282,6 +282,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "index": index, "truth": case.truth, "verdict": result.verdict,
         "top1": named[0] in case.truth, "exact": sorted(named) == sorted(case.truth),
         "unexplained": UNEXPLAINED in predicted, "noise_gap_percent": result.noise_gap_percent,
+        "reconstruction_gap_percent": result.reconstruction_gap_percent,
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
         "noise_floor_percent": result.noise_floor_percent,
         "true_shrink": true_shrink,
@@ -389,17 +390,28 @@ def _run_case_args(args: tuple[int, int, float, float, float, str]) -> dict[str,
 
 def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = RUN_DURATION_S,
                   min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
-                  first: int = 0, outside_set: str = "tuning") -> list[dict[str, Any]]:
+                  first: int = 0, outside_set: str = "tuning",
+                  on_row: Callable[[dict[str, Any]], None] | None = None
+                  ) -> list[dict[str, Any]]:
     """Run ``cases`` blind cases (from index ``first``) with ``workers`` processes; rows
-    in case order."""
+    in case order, each also handed to ``on_row`` as soon as it is in."""
     jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set)
             for index in range(first, first + cases)]
+    rows = []
     if workers <= 1:
-        return [_run_case_args(job) for job in jobs]
+        for job in jobs:
+            rows.append(_run_case_args(job))
+            if on_row:
+                on_row(rows[-1])
+        return rows
     import multiprocessing
 
     with multiprocessing.get_context("spawn").Pool(workers) as pool:
-        return list(pool.imap(_run_case_args, jobs, chunksize=1))
+        for row in pool.imap(_run_case_args, jobs, chunksize=1):
+            rows.append(row)
+            if on_row:
+                on_row(row)
+    return rows
 
 
 def timing_case(duration_s: float = 20.0, dt_s: float = 1e-3, seed: int = 0) -> dict[str, float]:
