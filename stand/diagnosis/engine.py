@@ -33,11 +33,11 @@ from stand import effects
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
 from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
+    UNEXPLAINED_FACTOR,
     beyond_noise_percent,
     explained_percent,
     noise_floor,
     noise_gap_percent,
-    resolvable_percent,
     unexplained,
 )
 from stand.diagnosis.notes import aliases, limits, single_tone_hz
@@ -318,12 +318,10 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                                    max_effects)
     floor = noise_floor(ho, bench.scale)
     noise_gap = noise_gap_percent(ho, bench.scale, bench.seg.horizon, base.model)
-    reconstruction = _reconstruction_gap(bench, base)
-    left = unexplained(base.gap, final.gap, noise_gap, reconstruction)
+    left = unexplained(base.gap, final.gap, noise_gap)
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
-    message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %, the current's timing "
-               f"within a sample {reconstruction:.2f} %); verdict {verdict}"
+    message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
                + (f", gap with it {final.gap:.1f} %" if chosen else ""))
     residual = equation_residual(base.model, ho)
     index = bench.seg.index
@@ -345,44 +343,24 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         noise_floor_percent=floor, message=message,
         residual_where=locate(equation_residual(final.model, ho), ho),
         model={**_nominal_dict(final.model, kt), **verdict_params},
-        noise_gap_percent=noise_gap, reconstruction_gap_percent=reconstruction,
+        noise_gap_percent=noise_gap,
         notes=(limits(tr, bench.tone_hz) + aliases(bench.aliased)
-               + _approximation_note(base.gap, final.gap, noise_gap, reconstruction, left)),
+               + _approximation_note(base.gap, final.gap, noise_gap, left)),
         steps=steps), traces
 
 
 def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float,
-                        reconstruction_gap: float, left: bool) -> list[str]:
+                        left: bool) -> list[str]:
     """Why a remainder beyond noise is not ``unexplained``: it is smaller than what the
     verdict's effects explain (:func:`stand.diagnosis.noise.unexplained`)."""
-    if left or verdict_gap <= resolvable_percent(noise_gap, reconstruction_gap):
+    if left or verdict_gap <= UNEXPLAINED_FACTOR * noise_gap:
         return []
-    beyond = beyond_noise_percent(verdict_gap, noise_gap, reconstruction_gap)
+    beyond = beyond_noise_percent(verdict_gap, noise_gap)
     return [f"the verdict's effects leave {beyond:.2f} % beyond the noise "
-            f"({noise_gap:.2f} %) and the current's timing ({reconstruction_gap:.2f} %), "
-            f"less than {APPROXIMATION_SHARE:g} times the "
+            f"({noise_gap:.2f} %), less than {APPROXIMATION_SHARE:g} times the "
             f"{explained_percent(nominal_gap, verdict_gap):.2f} % they explain: taken as "
             "their models' approximation of the physics, not as another effect; "
             "residual_where locates it"]
-
-
-def _reconstruction_gap(bench: _Bench, base: _Scored) -> float:
-    """The holdout gap (%) between the nominal model and the same model with its input
-    reconstruction one grid step (``INPUT_WEIGHTS``) earlier and later in the sample
-    period, in quadrature over the two (one at the grid's ends): how much of a gap
-    the sampled current leaves open (see :mod:`stand.diagnosis.noise`)."""
-    step = INPUT_WEIGHTS[1] - INPUT_WEIGHTS[0]
-    weight = base.spec.input_weight
-    shifts = []
-    for other in (weight - step, weight + step):
-        if not INPUT_WEIGHTS[0] <= other <= INPUT_WEIGHTS[-1]:
-            continue
-        try:
-            moved = bench.score(replace(base.spec, input_weight=other))
-        except NotExcitedError:
-            continue
-        shifts.append(float(np.mean((moved.error - base.error) ** 2)))
-    return 100.0 * math.sqrt(float(np.mean(shifts))) / bench.scale if shifts else 0.0
 
 
 def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],

@@ -1,25 +1,14 @@
 """What noise alone explains of a holdout gap, and when what the verdict's effects leave
 is ``unexplained`` (CONTRACT §3).
 
-Three things leave a gap besides an effect the vocabulary lacks:
-
-* sensor noise: the quantization of the measured speed and the current noise carried
-  through the free run (:func:`noise_gap_percent`, an estimate uncertain by a factor of
-  about 1.5, hence :data:`UNEXPLAINED_FACTOR`);
-* the sampled current: it does not say when within a sample period the current
-  changed. The nominal model picks that (its input reconstruction) on TRAIN to within
-  a step of its grid; the gap that one step either way makes on HOLDOUT (the
-  ``reconstruction_gap``, computed by the engine) is a model error no effect explains;
-* the vocabulary's own models, which only approximate the physics they name (a rigid
-  backlash contact for a compliant one, a ``sign(ω)`` friction for a shaft that sticks
-  under a speed loop). That error grows with the effect it approximates; an effect the
-  vocabulary lacks does not.
-
-A gap is therefore beyond what the model can resolve above
-:func:`resolvable_percent` (the noise times its factor and the reconstruction gap, in
-quadrature), and what the verdict's effects leave is ``unexplained`` when it is beyond
-that and, beyond it, at least :data:`APPROXIMATION_SHARE` of what the named effects
-explain (:func:`unexplained`); with no effect named, the first alone decides.
+Two things leave a gap after the verdict's effects besides noise: an effect the
+vocabulary lacks, and the vocabulary's own models, which only approximate the physics
+they name (a rigid backlash contact for a compliant one, a ``sign(ω)`` friction for a
+shaft that sticks under a speed loop). The second grows with the effect it
+approximates, the first does not. A remainder is therefore ``unexplained`` when it is
+beyond noise (:data:`UNEXPLAINED_FACTOR` times :func:`noise_gap_percent`) and, beyond
+the noise, at least :data:`APPROXIMATION_SHARE` of what the named effects explain
+(:func:`unexplained`); with no effect named, the first alone decides.
 """
 
 from __future__ import annotations
@@ -71,17 +60,9 @@ def noise_gap_percent(sig: Signals, scale: float, horizon: int, model: FittedMod
     return math.hypot(quant, 100.0 * walk / scale)
 
 
-def resolvable_percent(noise_gap: float, reconstruction_gap: float = 0.0) -> float:
-    """The gap (%) below which nothing can be told from noise and the sampled current:
-    ``UNEXPLAINED_FACTOR`` times the noise gap and the reconstruction gap, in quadrature."""
-    return math.hypot(UNEXPLAINED_FACTOR * noise_gap, reconstruction_gap)
-
-
-def beyond_noise_percent(gap: float, noise_gap: float, reconstruction_gap: float = 0.0) -> float:
-    """What of a gap (%) neither noise nor the sampled current explains:
-    ``sqrt(gap² − noise_gap² − reconstruction_gap²)``, 0 below them."""
-    rest = gap * gap - noise_gap * noise_gap - reconstruction_gap * reconstruction_gap
-    return math.sqrt(max(rest, 0.0))
+def beyond_noise_percent(gap: float, noise_gap: float) -> float:
+    """What of a gap (%) noise does not explain: ``sqrt(gap² − noise_gap²)``, 0 below it."""
+    return math.sqrt(max(gap * gap - noise_gap * noise_gap, 0.0))
 
 
 def explained_percent(nominal_gap: float, verdict_gap: float) -> float:
@@ -90,13 +71,12 @@ def explained_percent(nominal_gap: float, verdict_gap: float) -> float:
     return math.sqrt(max(nominal_gap * nominal_gap - verdict_gap * verdict_gap, 0.0))
 
 
-def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
-                reconstruction_gap: float = 0.0) -> bool:
+def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float) -> bool:
     """Whether the gap the verdict's effects leave (%, ``verdict_gap``; the nominal
     model's ``nominal_gap`` when none is named) is ``unexplained``: above
-    :func:`resolvable_percent`, and beyond noise and reconstruction at least
+    ``UNEXPLAINED_FACTOR`` times ``noise_gap``, and beyond the noise at least
     ``APPROXIMATION_SHARE`` of what the effects explain (see the module docstring)."""
-    if verdict_gap <= resolvable_percent(noise_gap, reconstruction_gap):
+    if verdict_gap <= UNEXPLAINED_FACTOR * noise_gap:
         return False
-    return (beyond_noise_percent(verdict_gap, noise_gap, reconstruction_gap)
+    return (beyond_noise_percent(verdict_gap, noise_gap)
             >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap))

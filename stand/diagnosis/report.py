@@ -151,10 +151,6 @@ class Diagnosis(JsonResult):
     noise_gap_percent : float
         Gap that noise alone gives (quantization and current noise through the free
         run), %; a gap above ``UNEXPLAINED_FACTOR`` times it is beyond noise.
-    reconstruction_gap_percent : float
-        Gap that the sampled current leaves open, %: the holdout gap between the nominal
-        model and the same model with the current's timing within a sample period moved
-        one step of its grid (:mod:`stand.diagnosis.noise`).
     """
 
     gap_percent: float
@@ -173,7 +169,6 @@ class Diagnosis(JsonResult):
     residual_where: Where | None = None
     model: dict[str, object] = field(default_factory=dict)
     noise_gap_percent: float | None = None
-    reconstruction_gap_percent: float | None = None
 
 
 @dataclass(frozen=True)

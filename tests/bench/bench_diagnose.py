@@ -75,7 +75,11 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarize_cases(rows)
     timing = None if args.no_timing else timing_case()
     print(confusion_table(summary))
-    print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with {args.workers} workers")
+    if args.summarize:
+        print(f"cases {summary['cases']} (rows of {', '.join(args.summarize)})")
+    else:
+        print(f"cases {summary['cases']} (seed {args.seed}), wall {wall:.0f} s with "
+              f"{args.workers} workers")
     print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
           f"tests.bench.diagnose.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
           f"{'n/a' if summary['median_snr'] is None else format(summary['median_snr'], '.2f')}")
