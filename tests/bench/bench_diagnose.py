@@ -23,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tests.bench.diagnose.benchmark import (  # noqa: E402
     MIN_EFFECT_SNR,
     confusion_table,
+    rescore,
     run_benchmark,
     summarize_cases,
     timing_case,
@@ -52,11 +53,16 @@ def main(argv: list[str] | None = None) -> int:
                         "as soon as it is in")
     parser.add_argument("--summarize", nargs="+", metavar="ROWS",
                         help="run nothing: print the figures of the cases in these --rows files")
+    parser.add_argument("--rescore", action="store_true",
+                        help="with --summarize: decide each row's unexplained again by the "
+                        "current rule (tests.bench.diagnose.benchmark.rescore)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     if args.summarize:
         rows = [json.loads(line) for path in args.summarize
                 for line in Path(path).read_text(encoding="utf-8").splitlines() if line]
+        if args.rescore:
+            rows = [rescore(row) for row in rows]
         args.no_timing = True
     else:
         out = open(args.rows, "w", encoding="utf-8") if args.rows else None  # noqa: SIM115

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from stand.diagnosis import diagnose
+from stand.diagnosis.noise import unexplained
 from stand.effects import EFFECTS, UNEXPLAINED, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
@@ -293,6 +294,22 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "scores": {e.effect: {"shrink": e.shrink, "p": e.p_value, "consistent": e.consistent,
                               "significant": e.significant} for e in result.effects},
     }
+
+
+def rescore(row: dict[str, Any]) -> dict[str, Any]:
+    """``row`` with its ``unexplained`` word decided again by the current rule
+    (:func:`stand.diagnosis.noise.unexplained`) from the gaps it holds: the rule reads
+    nothing else, so this is the verdict the current engine gives on that case when only
+    the rule changed since the row was written."""
+    if row["verdict"] == "error":
+        return row
+    named = [p for p in row["verdict"].split("+") if p not in (UNEXPLAINED, "none")]
+    left = unexplained(row["gap_percent"], row["verdict_gap_percent"], row["noise_gap_percent"])
+    words = named + ([UNEXPLAINED] if left else [])
+    verdict = "+".join(words) if words else "none"
+    shown = [p for p in verdict.split("+") if p != UNEXPLAINED] or [verdict]
+    return {**row, "verdict": verdict, "unexplained": left, "top1": shown[0] in row["truth"],
+            "exact": sorted(shown) == sorted(row["truth"])}
 
 
 def _refused(case: Case, exc: StandError, seconds: float, samples: int) -> dict[str, Any]:
