@@ -49,8 +49,12 @@ from stand.ident.noise import noise_sigma, noise_variance_uncertainty
 
 #: Points per sample period at which the friction columns are averaged.
 SUBSAMPLES = 8
+#: The current's change over the period after each sample, ``i[n + k + 1] − i[n + k]``:
+#: with its own coefficient ``(Kt/J)·w`` it makes the timing ``w`` of the current within
+#: the period a free, linear parameter (see :meth:`Design.matrices`).
+TIMING_COLUMN = "current_step"
 #: Columns that carry the measured current (and so need an instrument).
-CURRENT_COLUMNS = frozenset({"current", "rip_sin", "rip_cos"})
+CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, "rip_sin", "rip_cos"})
 
 
 def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
@@ -127,6 +131,10 @@ class Design:
         sig = self.sig
         if name == "current":
             return self.current(spec, instrument)
+        if name == TIMING_COLUMN:
+            step = interval_current(shifted(self.sig.current, spec.delay), 1.0) - \
+                interval_current(shifted(self.sig.current, spec.delay), 0.0)
+            return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
         if name in ("sign", "stribeck"):
@@ -145,6 +153,13 @@ class Design:
             return self.current(spec, instrument) * periodic
         return periodic
 
+    def noise_weights(self, weight: float = 0.5) -> np.ndarray:
+        """Weight of each current sample in the filtered held current of ``input_weight``
+        ``weight`` (the kernel's period integrals, :func:`interval_weights`)."""
+        weights = interval_weights(self.half_width, self.sig.dt_s)
+        return np.asarray((1 - weight) * np.concatenate([[0.0], weights])
+                          + weight * np.concatenate([weights, [0.0]]))
+
     def filtered_noise(self, weight: float = 0.5) -> tuple[float, float]:
         """Variance of the current noise after the kernel (A²) and its relative uncertainty.
 
@@ -155,38 +170,41 @@ class Design:
         (:func:`~stand.ident.noise.noise_variance_uncertainty`): large when the noise is
         coloured or the current moves between samples.
         """
-        weights = interval_weights(self.half_width, self.sig.dt_s)
-        w = weight
-        per_sample = (1 - w) * np.concatenate([[0.0], weights]) + w * np.concatenate([weights, [0.0]])
         sigma = noise_sigma(self.sig.current)
-        return (sigma**2 * float(np.sum(per_sample**2)),
+        return (sigma**2 * float(np.sum(self.noise_weights(weight) ** 2)),
                 noise_variance_uncertainty(self.sig.current))
 
     def noise_gram(self, spec: ModelSpec, names: list[str], rows: slice) -> np.ndarray:
-        """What the current noise adds to ``XᵀX`` of ``matrices(spec, False)``.
+        """What the current noise adds to ``XᵀX`` of ``matrices(spec, False, timing)``.
 
-        The noise of a current column ``j`` is ``g ∗ (n·m_j)`` with ``m_j`` its multiplier
-        (1, or the ripple's ``sin Nθ``/``cos Nθ``); summed over the rows, the product of
-        two such columns has the mean ``var(g ∗ n)·Σ m_j·m_l`` (:meth:`filtered_noise`).
-        Bias-compensated least squares subtracts it.
+        The noise of a current column ``j`` is ``Σ_s e_j[s]·n[s]·m_j`` with ``e_j`` the
+        weights of the samples in it (:meth:`noise_weights`; for the timing column the
+        difference of those of ``w = 1`` and ``w = 0``) and ``m_j`` its multiplier (1, or
+        the ripple's ``sin Nθ``/``cos Nθ``); summed over the rows, the product of two such
+        columns has the mean ``σ²·(e_j·e_l)·Σ m_j·m_l``. Bias-compensated least squares
+        subtracts it.
         """
-        gain, _ = self.filtered_noise(spec.input_weight)
+        sigma2 = noise_sigma(self.sig.current) ** 2
+        own = self.noise_weights(spec.input_weight)
         ones = np.ones(len(self.sig))
-        multipliers: dict[str, np.ndarray] = {}
+        sources: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for name in names:
             if name == "current":
-                multipliers[name] = ones
+                sources[name] = (own, ones)
+            elif name == TIMING_COLUMN:
+                sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0), ones)
             elif name in ("rip_sin", "rip_cos"):
                 step = np.concatenate([np.diff(self.sig.theta_f), [0.0]])
                 s, c = periodic_mean(spec.ripple_N or 0, self.sig.theta_f, step)
-                multipliers[name] = s if name == "rip_sin" else c
+                sources[name] = (own, s if name == "rip_sin" else c)
         h = self.half_width
         out = np.zeros((len(names), len(names)))
         for j, a in enumerate(names):
             for k, b in enumerate(names):
-                if a in multipliers and b in multipliers:
-                    product = (multipliers[a] * multipliers[b])[h:len(self.sig) - h][rows]
-                    out[j, k] = gain * float(np.sum(product))
+                if a in sources and b in sources:
+                    (ea, ma), (eb, mb) = sources[a], sources[b]
+                    product = (ma * mb)[h:len(self.sig) - h][rows]
+                    out[j, k] = sigma2 * float(ea @ eb) * float(np.sum(product))
         return out
 
     def rows(self, spec: ModelSpec, instrumented: bool = True) -> slice:
@@ -194,16 +212,23 @@ class Design:
         lag = self.lag if instrumented else 0
         return slice(lag, len(self.alpha) - max(lag, spec.delay))
 
-    def matrices(self, spec: ModelSpec, instrumented: bool = True
+    def matrices(self, spec: ModelSpec, instrumented: bool = True, timing: bool = False
                  ) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
         """Names, output ``y = θ''``, regressors ``X`` and instruments ``Z`` of ``spec``.
 
         The columns are ``θ`` (only with ``spec.spring``), ``θ'``, then the inputs of
         ``spec.names()``; rows within ``lag`` of either end (where the instrument is
         padded) and the delay's last samples are dropped. Not ``instrumented``: ``Z = X``
-        on every row.
+        on every row. ``timing``: the :data:`TIMING_COLUMN` follows the current, so the
+        current over the period is ``i[n + k] + w'·(i[n + k + 1] − i[n + k])`` on top of
+        ``spec.input_weight`` with ``w'`` fitted (a drive's current loop settles within
+        the period at a time of its own: a first-order loop of time constant ``τ`` gives
+        the period mean ``w = 1 − τ/Δt``, which the grid of 0, ½, 1 would miss).
         """
-        names = (["theta"] if spec.spring else []) + ["omega"] + spec.names()
+        inputs = spec.names()
+        if timing:
+            inputs.insert(1, TIMING_COLUMN)
+        names = (["theta"] if spec.spring else []) + ["omega"] + inputs
         motion = {"theta": self.theta, "omega": self.omega}
         X = np.column_stack([motion[n] if n in motion else self.column(spec, n) for n in names])
         Z = X if not (instrumented and self.lag) else np.column_stack(

@@ -26,12 +26,12 @@ from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare
 from stand.errors import InputError, NotExcitedError
 from stand.ident.checks import effect_params, run_warnings
-from stand.ident.columns import Design
+from stand.ident.columns import TIMING_COLUMN, Design
 from stand.ident.derivatives import auto_half_width, state_derivatives
 from stand.ident.estimate import Estimate, block_count, solve_blocks
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
-from stand.ident.select import Fitter, parse_effects, select
+from stand.ident.select import Fitter, model_variance, parse_effects, select
 from stand.ident.speed_loop import speed_loop, with_gain_uncertainty
 from stand.jsonable import JsonResult
 from stand.runfile import Run
@@ -265,15 +265,20 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     elif loop is not None:
         warnings.append(loop.message)
     fits = []
-    for current, timing in currents:
+    for current, known_timing in currents:
         design = Design.build(replace(sig, current=current, cache={}), h,
                               2 * h + 1 + INSTRUMENT_MARGIN)
-        chosen = select(Fitter(design, first, run.source), wanted, input_weight=timing)
-        fits.append((float(chosen.estimate.cv_sse.sum()), timing is not None, design, chosen))
-    _, from_loop, design, chosen = min(fits, key=lambda fit: fit[0])
-    est = chosen.estimate
+        fitter = Fitter(design, first, run.source)
+        if known_timing is not None:  # the law's current is the period's: no timing to fit
+            fitter.timing = False
+        chosen = select(fitter, wanted, input_weight=known_timing)
+        fits.append((float(chosen.estimate.cv_sse.sum()), known_timing is not None, design,
+                     fitter, chosen))
+    _, from_loop, design, fitter, chosen = min(fits, key=lambda fit: fit[0])
+    spec, est = chosen.spec, chosen.estimate
     if estimator == "auto":
-        estimator, est = _pick_estimator(design, chosen.spec, est, run.source)
+        estimator, spec, est = _pick_estimator(design, spec, est, run.source)
+    est = with_model_variance(est, model_variance(fitter, chosen))
     if loop is not None and loop.holds:
         if from_loop:
             est = with_gain_uncertainty(est, "current", loop.kp_rel_sd)
@@ -282,15 +287,35 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
                             "worse than the sampled current (the loop may saturate between "
                             "samples): the sampled current is used, and Kt/J may be high by "
                             "up to π·f_loop·Δt")
-    params = effect_params(chosen.spec, chosen.effects, est)
+    params = effect_params(spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes)
+    timing = spec.delay + current_weight(spec, est)
     return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
-                   warnings, estimator, chosen.spec.delay + chosen.spec.input_weight)
+                   warnings, estimator, timing)
+
+
+def with_model_variance(est: Estimate, variance: float) -> Estimate:
+    """``est`` with ``variance`` (rad/(s²·A))² added to that of Kt/J: the uncertainty of
+    which model describes the run (:func:`~stand.ident.select.model_variance`)."""
+    k = est.names.index("current")
+    cov = est.cov.copy()
+    cov[k, k] += variance
+    return replace(est, cov=cov)
+
+
+def current_weight(spec: ModelSpec, est: Estimate) -> float:
+    """Where in the period after a sample the current is read, as ``w`` of
+    :func:`~stand.diagnosis.model.interval_current`: the spec's, plus the fitted share of
+    the timing column when the estimate has one."""
+    if TIMING_COLUMN not in est.names:
+        return spec.input_weight
+    return spec.input_weight + est.value(TIMING_COLUMN) / est.value("current")
 
 
 def _pick_estimator(design: Design, spec: ModelSpec, bc: Estimate,
-                    source: str) -> tuple[str, Estimate]:
-    """``bc`` or ``iv`` for ``spec``, whichever has the smaller error of Kt/J.
+                    source: str) -> tuple[str, ModelSpec, Estimate]:
+    """``bc`` or ``iv`` for ``spec``, whichever has the smaller error of Kt/J (with the
+    spec it was fitted with: ``iv`` takes the current's timing ``bc`` found).
 
     The compensation of ``bc`` is as good as the noise variance it subtracts: its error
     is the shift it makes (``bc`` less ``ls``) times the relative uncertainty of that
@@ -304,11 +329,12 @@ def _pick_estimator(design: Design, spec: ModelSpec, bc: Estimate,
     cov = bc.cov.copy()
     cov[k, k] += shift**2
     bc = replace(bc, cov=cov)
+    iv_spec = replace(spec, input_weight=float(np.clip(current_weight(spec, bc), 0.0, 1.0)))
     try:
-        iv = Fitter(design, "iv", source).fit(spec)
+        iv = Fitter(design, "iv", source).fit(iv_spec)
     except NotExcitedError:
-        return "bc", bc
-    return ("iv", iv) if iv.cov[k, k] < bc.cov[k, k] else ("bc", bc)
+        return "bc", spec, bc
+    return ("iv", iv_spec, iv) if iv.cov[k, k] < bc.cov[k, k] else ("bc", spec, bc)
 
 
 def _result(run: Run, est: Estimate, method: str, no_load_current_A: float, half_width: int,

@@ -22,7 +22,7 @@ any offset) and named in a warning.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import f as f_dist
@@ -43,6 +43,9 @@ IDENT_EFFECTS: tuple[str, ...] = tuple(e.name for e in effect_registry.all_effec
 SELECT_ALPHA = 1e-3
 #: Timings of the current tried for the nominal model: the current at ``t + w·Δt``.
 INPUT_WEIGHTS: tuple[float, ...] = (0.0, 0.5, 1.0)
+#: Level at which a competing model's larger held-out error rejects it (paired t over the
+#: blocks): models not rejected at this level enter the model uncertainty of Kt/J.
+COMPETITOR_ALPHA = 0.05
 #: Least share of samples in the rarer direction for the shaft to count as reversing.
 MIN_REVERSE_SHARE = 0.02
 
@@ -61,12 +64,15 @@ class Selection:
         Its coefficients and their covariance.
     notes : list of str
         What the selection had to decide for the data (for the warnings).
+    pool : list of str
+        The effects it could choose from (empty when they were named).
     """
 
     spec: ModelSpec
     effects: list[str]
     estimate: Estimate
     notes: list[str]
+    pool: list[str] = field(default_factory=list)
 
 
 def reverses(design: Design) -> bool:
@@ -107,19 +113,29 @@ class Fitter:
     estimator : {'iv', 'bc', 'ls'}
         Instrumental variables, bias-compensated least squares (the filtered current
         noise of :meth:`Design.filtered_noise` subtracted), or least squares.
+
+    Attributes
+    ----------
+    timing : bool
+        The timing of the current within the period is fitted (the
+        :data:`~stand.ident.columns.TIMING_COLUMN`): with ``bc`` and ``ls``. An
+        instrument for the current's change within a period would have to predict a
+        step from the current ``L`` samples away, which it cannot: ``iv`` takes the
+        timing as given by the spec.
     """
 
     def __init__(self, design: Design, estimator: str, source: str = "run") -> None:
         self.design = design
         self.estimator = estimator
         self.source = source
+        self.timing = estimator in ("bc", "ls")
         lag = design.lag if estimator == "iv" else 0
         self.blocks = block_count(len(design.alpha) - 2 * lag, 2 * design.half_width + 1)
 
     def fit(self, spec: ModelSpec) -> Estimate:
         """Fit ``spec``."""
         iv = self.estimator == "iv"
-        names, y, X, Z = self.design.matrices(spec, iv)
+        names, y, X, Z = self.design.matrices(spec, iv, self.timing)
         noise = None
         if self.estimator == "bc":
             noise = self.design.noise_gram(spec, names, self.design.rows(spec, False))
@@ -187,6 +203,53 @@ def _held_out_better(base: Estimate, cand: Estimate, tried: int) -> float:
     return min(1.0, tried * float(student_t.sf(t, len(d) - 1)))
 
 
+def competitors(fitter: Fitter, chosen: Selection, pool: list[str]) -> list[Estimate]:
+    """Estimates of the models the data do not reject beside ``chosen``.
+
+    The competitors are ``chosen`` with each of its effects at every other value of its
+    grid (a Stribeck velocity, a cogging order, a delay), with each effect of ``pool``
+    not in it added at every value of its grid, and, when the fitter fits the current's
+    timing, with the timing fixed at each of :data:`INPUT_WEIGHTS`. One is rejected when
+    its held-out error exceeds that of ``chosen`` by the paired test over the blocks at
+    :data:`COMPETITOR_ALPHA`; the others explain the run as well as ``chosen`` does.
+    """
+    design, spec = fitter.design, chosen.spec
+    specs: list[ModelSpec] = []
+    for name in dict.fromkeys([*chosen.effects, *pool]):
+        if name in chosen.effects or not set(effect_registry.nested_in(name)) & set(chosen.effects):
+            specs += [s for s in _candidates(design, spec, name) if s != spec]
+    found = []
+    for candidate in specs:
+        try:
+            found.append(fitter.fit(candidate))
+        except NotExcitedError:
+            continue
+    if fitter.timing:
+        fixed = Fitter(fitter.design, fitter.estimator, fitter.source)
+        fixed.timing = False
+        for w in INPUT_WEIGHTS:
+            try:
+                found.append(fixed.fit(replace(spec, input_weight=w)))
+            except NotExcitedError:
+                continue
+    return [est for est in found
+            if _held_out_better(est, chosen.estimate, 1) > COMPETITOR_ALPHA]
+
+
+def model_variance(fitter: Fitter, chosen: Selection) -> float:
+    """Variance of Kt/J over the models the data do not reject (:func:`competitors`):
+    the largest squared difference of their Kt/J from that of ``chosen``, (rad/(s²·A))².
+
+    The block sandwich sees the scatter of the blocks about the chosen model; a bias that
+    every block shares (an effect taken for a similar one, a hyper-parameter between grid
+    values) it cannot see. Where several models explain the run equally well, Kt/J is
+    known no better than they agree.
+    """
+    b = chosen.estimate.value("current")
+    spread = [(est.value("current") - b) ** 2 for est in competitors(fitter, chosen, chosen.pool)]
+    return max(spread, default=0.0)
+
+
 def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
            input_weight: float | None = None) -> Selection:
     """Choose (``wanted`` is ``None``) or fit the named effects with ``fitter``.
@@ -220,7 +283,10 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
         notes.append("never_reverses")
         if wanted is not None and offset in wanted and coulomb not in pool:
             pool.append(coulomb)
-    weights = INPUT_WEIGHTS if input_weight is None else (input_weight,)
+    if input_weight is not None:  # a current rebuilt over the period: its timing is known
+        weights: tuple[float, ...] = (input_weight,)
+    else:
+        weights = (0.0,) if fitter.timing else INPUT_WEIGHTS  # the timing column fits it
     nominal = fitter.best([ModelSpec(input_weight=w, spring=spring) for w in weights])
     if nominal is None:
         raise NotExcitedError(f"{source}: the nominal model cannot be fitted: the data do not "
@@ -251,6 +317,6 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
             if best is None or found[1].cv_sse.sum() < best[2].cv_sse.sum():
                 best = (name, *found)
         if best is None:
-            return Selection(spec, chosen, est, notes)
+            return Selection(spec, chosen, est, notes, pool)
         chosen.append(best[0])
         spec, est = best[1], best[2]
