@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+from stand.errors import InputError
+from stand.ident.select import parse_effects
 
 #: A run id as the storage makes them (32 hex digits); anything else cannot exist.
 RunId = Annotated[str, Field(min_length=1, max_length=64, description="stored run id (GET /runs)")]
@@ -28,6 +31,27 @@ MAX_DURATION_S = 3600.0
 MAX_SEED = 2**32 - 1
 #: A shipped profile's name: letters, digits, ``_`` and ``-``; no path, no suffix.
 PROFILE_NAME = r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$"
+
+
+def _effects(text: str) -> str:
+    """The text of an ``effects`` field, checked by the CLI's own parser."""
+    try:
+        parse_effects(text)
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
+    return text
+
+
+#: ``--effects`` of the CLI: ``auto``, ``none`` or comma-separated effect names.
+Effects = Annotated[str, AfterValidator(_effects), Field(
+    min_length=1, max_length=200,
+    description="effects in the model: 'auto' (the data choose), 'none' (seed 000's model) "
+                "or comma-separated names of the identifiable effects (CONTRACT §3)")]
+#: ``--estimator`` of the CLI (``None``: ``auto`` with effects, ``ls`` without).
+Estimator = Annotated[Literal["auto", "iv", "bc", "ls"] | None, Field(
+    description="how current noise is kept from biasing Kt/J: instrumental variables, "
+                "bias-compensated or plain least squares, or 'auto' (the better of bc and "
+                "iv); null: auto with effects, ls for effects 'none'")]
 
 
 def _bounded(low: float | None = None, high: float | None = None, *, gt: float | None = None,
@@ -82,6 +106,8 @@ class IdentifyRequest(_Body):
     run: RunId
     method: Literal["default", "paper"] = "default"
     no_load_current_A: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 0.0
+    effects: Effects = "auto"
+    estimator: Estimator = None
 
 
 class TorqueConstantRequest(_Body):
@@ -92,6 +118,8 @@ class TorqueConstantRequest(_Body):
     added_inertia: Positive = Field(description="inertia of the added disk, kg·m²")
     method: Literal["default", "paper"] = "default"
     compensate: bool = True
+    effects: Effects = "auto"
+    estimator: Estimator = None
 
 
 class EfficiencyRequest(_Body):

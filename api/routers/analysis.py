@@ -37,12 +37,14 @@ log = logging.getLogger("stand.api")
 
 
 def _identify(body: IdentifyRequest, runs: dict[str, Any]) -> JsonResult:
-    return identify(runs["run"], method=body.method, no_load_current_A=body.no_load_current_A)
+    return identify(runs["run"], method=body.method, no_load_current_A=body.no_load_current_A,
+                    effects=body.effects, estimator=body.estimator)
 
 
 def _torque_constant(body: TorqueConstantRequest, runs: dict[str, Any]) -> JsonResult:
     return torque_constant(runs["no_load"], runs["loaded"], body.added_inertia,
-                           method=body.method, compensate=body.compensate)
+                           method=body.method, compensate=body.compensate,
+                           effects=body.effects, estimator=body.estimator)
 
 
 def _efficiency(body: EfficiencyRequest, runs: dict[str, Any]) -> JsonResult:

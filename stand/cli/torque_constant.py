@@ -9,6 +9,7 @@ from typing import Any
 from stand import TorqueConstantResult, read_run, torque_constant
 from stand.cli import options
 from stand.ident.derivatives import METHODS
+from stand.ident.identify import ESTIMATORS
 
 LOG = logging.getLogger(__name__)
 
@@ -32,6 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--effects", default="auto", metavar="auto|none|NAME[,NAME]",
                         help="effects in each run's model (as for stand identify); with effects "
                              "the friction model replaces the §5.1 compensation")
+    parser.add_argument("--estimator", choices=ESTIMATORS, default=None,
+                        help="each run's estimator, as for stand identify (default: auto with "
+                             "effects, ls without)")
 
 
 def run(args: argparse.Namespace) -> TorqueConstantResult:
@@ -39,7 +43,7 @@ def run(args: argparse.Namespace) -> TorqueConstantResult:
         [read_run(path, "single") for path in args.no_load],
         [read_run(path, "single") for path in args.loaded],
         args.added_inertia, args.method, not args.no_compensation, args.half_width,
-        args.effects)
+        args.effects, args.estimator)
     if not args.json:  # human mode: the warnings on stderr, beside the summary
         for text in result.warnings:
             LOG.warning("warning: %s", text)

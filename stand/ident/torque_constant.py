@@ -152,8 +152,8 @@ def _interval(values: np.ndarray, std: float, dof: int) -> list[float]:
 
 def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
                     added_inertia: float, method: str = "default", compensate: bool = True,
-                    half_width: int | None = None, effects: str = "auto"
-                    ) -> TorqueConstantResult:
+                    half_width: int | None = None, effects: str = "auto",
+                    estimator: str | None = None) -> TorqueConstantResult:
     """Kt, J, D, C from repeated no-load and added-inertia runs (eqs. 11-17, §5.1).
 
     Parameters
@@ -171,6 +171,8 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
     effects : str
         ``auto``, ``none`` or effect names, as for
         :func:`~stand.ident.identify.identify_run` (the paper method takes none).
+    estimator : {'auto', 'iv', 'bc', 'ls'} or None
+        Each run's estimator, as for :func:`~stand.ident.identify.identify_run`.
 
     Raises
     ------
@@ -198,9 +200,10 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
     currents = [no_load_current(run, method, half_width) for run in no_load_runs]
     i_nl = float(np.mean(currents))
     offset = i_nl if compensate and seed_model else 0.0
-    free: list[IdentifyResult] = [identify_run(r, method, offset, half_width, effects)
+    free: list[IdentifyResult] = [identify_run(r, method, offset, half_width, effects, estimator)
                                   for r in no_load_runs]
-    loaded = [identify_run(r, method, offset, half_width, effects) for r in loaded_runs]
+    loaded = [identify_run(r, method, offset, half_width, effects, estimator)
+              for r in loaded_runs]
     b_free = np.array([f.Kt_over_J for f in free])
     b_load = np.array([f.Kt_over_J for f in loaded])
     if np.mean(b_free) <= np.mean(b_load):
