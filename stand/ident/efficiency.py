@@ -22,7 +22,10 @@ Friction on each shaft: eq. 18 holds because Coulomb and viscous friction are th
 on both plateaus of a step at one speed, and cancel in ``Δi``. Where the input shaft
 turns the other way (or stands) on one side of a step, the friction of both shafts
 changes sign with it and ``Δi`` holds twice its torque: such steps are left out, and a
-warning says how many.
+warning says how many. So are steps where the output motor's load turns with the
+output shaft (a load of one sign on an input that reverses): there the output motor
+drives the reducer, power flows backwards, and the ratio of eq. 18 is the inverse of
+the back-driving efficiency, which in a real reducer differs from the forward one.
 """
 
 from __future__ import annotations
@@ -164,16 +167,25 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
     level_out, se_out = np.array([_level(i_out[p]) for p in plateaus]).T
     step_in, step_out = np.diff(level_in), np.diff(level_out)
     direction = np.array([_direction(run["position_in_rad"][p]) for p in plateaus])
-    kept = np.flatnonzero((direction[:-1] == direction[1:]) & (direction[1:] != 0))
+    same_way = (direction[:-1] == direction[1:]) & (direction[1:] != 0)
+    forward = _brakes(level_out, run["position_out_rad"], plateaus)
+    kept = np.flatnonzero(same_way & forward)
     warnings: list[str] = []
-    if len(kept) < len(step_in):
+    if not np.all(same_way):
         warnings.append(
-            f"{len(step_in) - len(kept)} of {len(step_in)} load step(s) left out: the input "
+            f"{int(np.sum(~same_way))} of {len(step_in)} load step(s) left out: the input "
             "shaft turns the other way or stands on one side, so the friction of both shafts "
             "changes with it and does not cancel in eq. 18")
+    if np.any(same_way & ~forward):
+        warnings.append(
+            f"{int(np.sum(same_way & ~forward))} of {len(step_in)} load step(s) left out: the "
+            "output motor drives the reducer there (its torque turns with the output shaft), "
+            "so power flows backwards and eq. 18 would give the inverse of the back-driving "
+            "efficiency; load the output against its motion")
     if kept.size == 0:
         raise NotExcitedError(f"{run.source}: no load step with the input turning the same way "
-                              "on both sides; hold the input speed constant across the steps")
+                              "on both sides and the load opposing the motion; hold the input "
+                              "speed constant across the steps and brake the output")
     if np.any(step_in[kept] == 0):
         raise NotExcitedError(f"{run.source}: the input current did not change at a load step")
     di_in, di_out = np.abs(step_in), np.abs(step_out)
@@ -209,7 +221,28 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
     )
 
 
+def _brakes(level_out: np.ndarray, position_out: np.ndarray, plateaus: list[slice]
+            ) -> np.ndarray:
+    """For each step, whether the output motor brakes the output shaft on the step's
+    loaded side (the plateau of larger output current): its current opposes the output's
+    travel, so the reducer drives the load (power flows forwards, as eq. 18 assumes).
+    The output's own travel decides (a reducer may reverse the direction)."""
+    out_dir = np.array([_direction(position_out[p]) for p in plateaus])
+    loaded = np.where(np.abs(level_out[1:]) >= np.abs(level_out[:-1]),
+                      np.arange(1, len(level_out)), np.arange(len(level_out) - 1))
+    return np.asarray(np.sign(level_out[loaded]) * out_dir[loaded] < 0)
+
+
 def _direction(position: np.ndarray) -> int:
-    """Sign of the travel over the settled part of a plateau (0: no travel)."""
+    """Sign of the travel over the settled part of a plateau: ``+1`` or ``−1`` when the
+    shaft turns that way throughout it, 0 when it stands or turns both ways (a plateau
+    that holds a reversal: its mean current mixes the frictions of both directions)."""
     settled = position[int(np.ceil(SETTLE_FRACTION * len(position))):]
-    return int(np.sign(settled[-1] - settled[0])) if len(settled) > 1 else 0
+    travel = np.diff(settled)
+    if travel.size == 0 or not np.any(travel):
+        return 0
+    if np.all(travel >= 0):
+        return 1
+    if np.all(travel <= 0):
+        return -1
+    return 0

@@ -14,7 +14,7 @@ from stand.errors import InputError, NotExcitedError
 from stand.ident.efficiency import efficiency, find_steps
 from stand.procedures import efficiency_procedure, simulate_stand_procedure
 from stand.profiles import load_motor, load_stand
-from stand.runfile import check_columns
+from stand.runfile import Run, check_columns
 
 STAND = "cycloidal_two_motor"
 
@@ -88,24 +88,44 @@ def test_cli_on_stand_simulate_output(tmp_path: Path, capsys: pytest.CaptureFixt
     assert result["delta_i_out_A"] == pytest.approx(0.5, rel=0.01)
 
 
-def test_steps_across_a_reversal_are_left_out() -> None:
-    # Coulomb friction on both shafts (0.1 A in, 0.08 A out) with a reversing input and
-    # 2 mA current noise: within one direction the friction cancels in Δi and η = 0.8;
-    # the step across the reversal holds twice the friction and is left out. Tolerance
-    # 0.005: a few standard deviations of η from 300 settled samples a plateau.
+def reversing_run(brake: bool) -> Run:
+    """Coulomb friction on both shafts (0.1 A in, 0.08 A out), an input that reverses
+    after three plateaus, 2 mA current noise; the output load of 0.5 A opposes the
+    motion in both directions (``brake``) or keeps one sign."""
     rng = np.random.default_rng(4)
     level = np.repeat([0.0, 1.0, 0.0, 1.0, 0.0, 1.0], 400)
     direction = np.repeat([1.0, 1.0, 1.0, -1.0, -1.0, -1.0], 400)
+    # the load's sign on the output shaft: against the motion, or always negative
+    load = level * direction if brake else level
+    # forward power flow: the input adds 0.05 A against the load, η = 0.04·0.5/(10·0.05·0.05);
+    # backward (the load turns with the shaft): the input takes η·(its share) back
+    share = np.where(load * direction > 0, 1.0, 0.8 * 0.8)
     n = len(level)
-    run = check_columns({
+    return check_columns({
         "time_s": np.arange(n) * 1e-3,
-        "current_in_A": 0.05 * level + 0.1 * direction + 0.002 * rng.standard_normal(n),
+        "current_in_A": 0.05 * share * load + 0.1 * direction + 0.002 * rng.standard_normal(n),
         "position_in_rad": np.cumsum(direction) * 0.168,
-        "current_out_A": -0.5 * level - 0.08 * direction + 0.002 * rng.standard_normal(n),
+        "current_out_A": -0.5 * load - 0.08 * direction + 0.002 * rng.standard_normal(n),
         "position_out_rad": np.cumsum(direction) * 0.168 / 10,
     }, "reducer", "reversing")
-    r = efficiency(run, 10.0, 0.05, 0.04)
+
+
+def test_steps_across_a_reversal_are_left_out() -> None:
+    # Within one direction the friction cancels in Δi and η = 0.8; the step across the
+    # reversal holds twice the friction and is left out. Tolerance 0.005: a few standard
+    # deviations of η from 300 settled samples a plateau.
+    r = efficiency(reversing_run(brake=True), 10.0, 0.05, 0.04)
     assert r.steps == 4
     assert abs(r.efficiency - 0.8) < 0.005
-    assert any("left out" in w for w in r.warnings)
+    assert any("turns the other way" in w for w in r.warnings)
     assert r.efficiency_ci95[0] <= r.efficiency <= r.efficiency_ci95[1]
+
+
+def test_steps_with_power_flowing_backwards_are_left_out() -> None:
+    # A load of one sign on a reversing input: after the reversal the output motor drives
+    # the reducer, and Δi_out/Δi_in there is 1/η (1.25 here), not η. Those two steps are
+    # left out and named; the two forward steps give η = 0.8.
+    r = efficiency(reversing_run(brake=False), 10.0, 0.05, 0.04)
+    assert r.steps == 2
+    assert abs(r.efficiency - 0.8) < 0.005
+    assert any("power flows backwards" in w for w in r.warnings)
