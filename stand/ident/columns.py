@@ -45,7 +45,7 @@ from stand.diagnosis.model import (
 )
 from stand.diagnosis.signals import Signals
 from stand.ident.derivatives import _convolve_valid, filter_held, interval_weights, kernel
-from stand.ident.noise import noise_sigma, noise_variance_uncertainty
+from stand.ident.noise import noise_sigma, noise_variance_uncertainty, passband_noise
 
 #: Points per sample period at which the friction columns are averaged.
 SUBSAMPLES = 8
@@ -160,19 +160,38 @@ class Design:
         return np.asarray((1 - weight) * np.concatenate([[0.0], weights])
                           + weight * np.concatenate([weights, [0.0]]))
 
+    def noise_level(self) -> tuple[float, float]:
+        """Variance (A²) of white noise that passes the kernel as the current's noise
+        does, and its relative uncertainty.
+
+        Two estimates, each at least the noise (the signal only adds to it): the white
+        level from the sample-to-sample differences
+        (:func:`~stand.ident.noise.noise_sigma`, uncertain by the disagreement of first
+        and second differences, :func:`~stand.ident.noise.noise_variance_uncertainty`),
+        and the least level of the spectrum above the kernel's passband
+        (:func:`~stand.ident.noise.passband_noise`): lower where the noise is coloured
+        towards high frequencies, higher where a broadband command fills the spectrum.
+        The smaller is taken.
+        """
+        key = ("noise level",)
+        if key not in self.cache:
+            cutoff = 1.0 / (2.0 * (self.half_width + 1) * self.sig.dt_s)
+            white = (noise_sigma(self.sig.current) ** 2,
+                     noise_variance_uncertainty(self.sig.current))
+            band = passband_noise(self.sig.current, self.sig.dt_s, cutoff)
+            self.cache[key] = np.array(min(white, band))
+        variance, uncertainty = self.cache[key]
+        return float(variance), float(uncertainty)
+
     def filtered_noise(self, weight: float = 0.5) -> tuple[float, float]:
         """Variance of the current noise after the kernel (A²) and its relative uncertainty.
 
-        White noise of the standard deviation the sample-to-sample differences give
-        (:func:`~stand.ident.noise.noise_sigma`) keeps ``σ²·Σ e²`` after the kernel, with
-        ``e`` the weight of each sample in the held current of ``input_weight`` ``weight``.
-        Its uncertainty is the disagreement of first and second differences
-        (:func:`~stand.ident.noise.noise_variance_uncertainty`): large when the noise is
-        coloured or the current moves between samples.
+        White noise of the variance :meth:`noise_level` gives keeps ``σ²·Σ e²`` after the
+        kernel, with ``e`` the weight of each sample in the held current of
+        ``input_weight`` ``weight``.
         """
-        sigma = noise_sigma(self.sig.current)
-        return (sigma**2 * float(np.sum(self.noise_weights(weight) ** 2)),
-                noise_variance_uncertainty(self.sig.current))
+        variance, uncertainty = self.noise_level()
+        return variance * float(np.sum(self.noise_weights(weight) ** 2)), uncertainty
 
     def noise_gram(self, spec: ModelSpec, names: list[str], rows: slice) -> np.ndarray:
         """What the current noise adds to ``XᵀX`` of ``matrices(spec, False, timing)``.
@@ -184,7 +203,7 @@ class Design:
         columns has the mean ``σ²·(e_j·e_l)·Σ m_j·m_l``. Bias-compensated least squares
         subtracts it.
         """
-        sigma2 = noise_sigma(self.sig.current) ** 2
+        sigma2, _ = self.noise_level()
         own = self.noise_weights(spec.input_weight)
         ones = np.ones(len(self.sig))
         sources: dict[str, tuple[np.ndarray, np.ndarray]] = {}

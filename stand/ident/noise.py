@@ -40,3 +40,47 @@ def noise_variance_uncertainty(signal: np.ndarray) -> float:
         return 1.0
     second = MAD_TO_SIGMA * float(np.median(np.abs(d2 - np.median(d2)))) / np.sqrt(6.0)
     return max(MIN_VARIANCE_UNCERTAINTY, abs(first**2 - second**2) / first**2)
+
+
+#: The passband noise is read in octave bands from this many times the kernel's cutoff
+#: up to the Nyquist frequency (below it the run's own signal fills the spectrum).
+PASSBAND_START = 4.0
+#: Fewest spectral lines in a band for its level to count.
+MIN_BAND_LINES = 4
+
+
+def passband_noise(signal: np.ndarray, dt_s: float, cutoff_hz: float) -> tuple[float, float]:
+    """Variance of white noise that puts into a low-pass of cutoff ``cutoff_hz`` what the
+    noise of ``signal`` puts there, and its relative uncertainty.
+
+    Coloured noise (most of its power at high frequencies, as a PWM-driven current shows)
+    makes :func:`noise_sigma` (from sample-to-sample differences, which weigh the highest
+    frequencies) overstate what passes a long kernel. The spectrum (Welch, segments of at
+    least 8 kernel lengths) is read in octave bands from ``PASSBAND_START`` times the
+    cutoff up to the Nyquist frequency; the run's signal only adds to a band, so the least
+    band level is the noise level nearest to the passband that the data show. A white
+    level ``P`` (one-sided, per Hz) is the variance ``P/(2Δt)``. The uncertainty is the
+    sampling error of that band's mean, ``1/√(lines·segments)``, at least
+    :data:`MIN_VARIANCE_UNCERTAINTY`. Falls back to :func:`noise_sigma` (and 1) when the
+    run is too short to resolve a band.
+    """
+    from scipy.signal import welch
+
+    x = np.asarray(signal, dtype=float)
+    fs = 1.0 / dt_s
+    segment = int(2 ** np.ceil(np.log2(max(16.0, 8.0 * fs / max(cutoff_hz, 1e-12)))))
+    segment = min(segment, len(x))
+    freq, psd = welch(x, fs=fs, nperseg=segment, detrend="linear")
+    segments = max(1, 2 * len(x) // segment - 1)
+    levels: list[tuple[float, int]] = []
+    low = PASSBAND_START * cutoff_hz
+    while low < fs / 2:
+        band = (freq >= low) & (freq < 2 * low)
+        if int(np.sum(band)) >= MIN_BAND_LINES:
+            levels.append((float(np.mean(psd[band])), int(np.sum(band))))
+        low *= 2
+    if not levels:
+        return noise_sigma(x) ** 2, 1.0
+    level, lines = min(levels)
+    return (level * fs / 2.0,
+            max(MIN_VARIANCE_UNCERTAINTY, 1.0 / float(np.sqrt(lines * segments))))

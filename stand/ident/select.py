@@ -237,17 +237,25 @@ def competitors(fitter: Fitter, chosen: Selection, pool: list[str]) -> list[Esti
 
 
 def model_variance(fitter: Fitter, chosen: Selection) -> float:
-    """Variance of Kt/J over the models the data do not reject (:func:`competitors`):
-    the largest squared difference of their Kt/J from that of ``chosen``, (rad/(s²·A))².
+    """Variance of Kt/J over the models the data do not reject (:func:`competitors`),
+    (rad/(s²·A))²: the largest squared difference of a competitor's Kt/J from that of
+    ``chosen`` beyond what the noise alone makes it.
 
     The block sandwich sees the scatter of the blocks about the chosen model; a bias that
     every block shares (an effect taken for a similar one, a hyper-parameter between grid
     values) it cannot see. Where several models explain the run equally well, Kt/J is
-    known no better than they agree.
+    known no better than they agree. Two fits of one run differ by noise too: for nested
+    fits the variance of their difference is the difference of their variances
+    (Hausman), which is taken off each squared difference, so that a noisy run does not
+    count its noise twice.
     """
-    b = chosen.estimate.value("current")
-    spread = [(est.value("current") - b) ** 2 for est in competitors(fitter, chosen, chosen.pool)]
-    return max(spread, default=0.0)
+    k = chosen.estimate.names.index("current")
+    b, var = chosen.estimate.beta[k], chosen.estimate.cov[k, k]
+    spread = []
+    for est in competitors(fitter, chosen, chosen.pool):
+        j = est.names.index("current")
+        spread.append(max(0.0, (est.beta[j] - b) ** 2 - abs(est.cov[j, j] - var)))
+    return float(max(spread, default=0.0))
 
 
 def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
