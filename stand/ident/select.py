@@ -129,11 +129,25 @@ class Fitter:
         self.estimator = estimator
         self.source = source
         self.timing = estimator in ("bc", "ls")
+        self._fits: dict[tuple[ModelSpec, bool], Estimate | NotExcitedError] = {}
         lag = design.lag if estimator == "iv" else 0
         self.blocks = block_count(len(design.alpha) - 2 * lag, 2 * design.half_width + 1)
 
     def fit(self, spec: ModelSpec) -> Estimate:
-        """Fit ``spec``."""
+        """Fit ``spec`` (each spec once: the selection and the competitors of
+        :func:`model_variance` share the fits)."""
+        key = (spec, self.timing)
+        if key not in self._fits:
+            try:
+                self._fits[key] = self._fit(spec)
+            except NotExcitedError as exc:
+                self._fits[key] = exc
+        found = self._fits[key]
+        if isinstance(found, NotExcitedError):
+            raise found
+        return found
+
+    def _fit(self, spec: ModelSpec) -> Estimate:
         iv = self.estimator == "iv"
         names, y, X, Z = self.design.matrices(spec, iv, self.timing)
         noise = None
@@ -225,13 +239,15 @@ def competitors(fitter: Fitter, chosen: Selection, pool: list[str]) -> list[Esti
         except NotExcitedError:
             continue
     if fitter.timing:
-        fixed = Fitter(fitter.design, fitter.estimator, fitter.source)
-        fixed.timing = False
-        for w in INPUT_WEIGHTS:
-            try:
-                found.append(fixed.fit(replace(spec, input_weight=w)))
-            except NotExcitedError:
-                continue
+        fitter.timing = False
+        try:
+            for w in INPUT_WEIGHTS:
+                try:
+                    found.append(fitter.fit(replace(spec, input_weight=w)))
+                except NotExcitedError:
+                    continue
+        finally:
+            fitter.timing = True
     return [est for est in found
             if _held_out_better(est, chosen.estimate, 1) > COMPETITOR_ALPHA]
 
