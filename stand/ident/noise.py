@@ -45,6 +45,8 @@ def noise_variance_uncertainty(signal: np.ndarray) -> float:
 #: The passband noise is read in octave bands from this many times the kernel's cutoff
 #: up to the Nyquist frequency (below it the run's own signal fills the spectrum).
 PASSBAND_START = 4.0
+#: Bands within this many standard errors of the least band level are pooled with it.
+POOL_SE = 2.0
 #: Fewest spectral lines in a band for its level to count.
 MIN_BAND_LINES = 4
 
@@ -58,9 +60,11 @@ def passband_noise(signal: np.ndarray, dt_s: float, cutoff_hz: float) -> tuple[f
     frequencies) overstate what passes a long kernel. The spectrum (Welch, segments of at
     least 8 kernel lengths) is read in octave bands from ``PASSBAND_START`` times the
     cutoff up to the Nyquist frequency; the run's signal only adds to a band, so the least
-    band level is the noise level nearest to the passband that the data show. A white
-    level ``P`` (one-sided, per Hz) is the variance ``P/(2Δt)``. The uncertainty is the
-    sampling error of that band's mean, ``1/√(lines·segments)``, at least
+    band level is the noise level nearest to the passband that the data show. The least
+    of several noisy band means is biased low, so the bands within ``POOL_SE`` standard
+    errors of it (all of them for white noise) are pooled, weighted by their lines. A
+    white level ``P`` (one-sided, per Hz) is the variance ``P/(2Δt)``. The uncertainty is
+    the sampling error of the pooled mean, ``1/√(lines·segments)``, at least
     :data:`MIN_VARIANCE_UNCERTAINTY`. Falls back to :func:`noise_sigma` (and 1) when the
     run is too short to resolve a band.
     """
@@ -81,6 +85,10 @@ def passband_noise(signal: np.ndarray, dt_s: float, cutoff_hz: float) -> tuple[f
         low *= 2
     if not levels:
         return noise_sigma(x) ** 2, 1.0
-    level, lines = min(levels)
+    least, lines = min(levels)
+    ceiling = least * (1.0 + POOL_SE / np.sqrt(lines * segments))
+    pooled = [(level, n) for level, n in levels if level <= ceiling]
+    total = sum(n for _, n in pooled)
+    level = sum(level * n for level, n in pooled) / total
     return (level * fs / 2.0,
-            max(MIN_VARIANCE_UNCERTAINTY, 1.0 / float(np.sqrt(lines * segments))))
+            max(MIN_VARIANCE_UNCERTAINTY, 1.0 / float(np.sqrt(total * segments))))
