@@ -269,7 +269,10 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
         design = Design.build(replace(sig, current=current, cache={}), h,
                               2 * h + 1 + INSTRUMENT_MARGIN)
         fitter = Fitter(design, first, run.source)
-        if known_timing is not None:  # the law's current is the period's: no timing to fit
+        if loop is not None:
+            # the law's current is the period's own (no timing to fit); the sampled current
+            # under a speed loop is no current loop's step response either, and a free
+            # timing would absorb part of the loop's kick between samples
             fitter.timing = False
         chosen = select(fitter, wanted, input_weight=known_timing)
         fits.append((float(chosen.estimate.cv_sse.sum()), known_timing is not None, design,
