@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stand.diagnosis.backlash_load import load_state
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
     VELOCITY_RESOLUTION_COUNTS,
     FittedModel,
     interval_current,
-    load_state,
     periodic_mean,
     shifted,
 )

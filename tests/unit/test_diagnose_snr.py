@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from stand.diagnosis.backlash_load import load_estimate
 from stand.diagnosis.candidates import agree
-from stand.diagnosis.model import FittedModel, ModelSpec, load_estimate
+from stand.diagnosis.model import FittedModel, ModelSpec
 from tests.bench.diagnose.benchmark import MIN_EFFECT_SNR, draw_case
 from tests.bench.diagnose.snr import effect_snr
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs

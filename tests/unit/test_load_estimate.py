@@ -1,4 +1,4 @@
-"""The kinematic load estimate of a backlash (stand.diagnosis.model.load_estimate): without
+"""The kinematic load estimate of a backlash (stand.diagnosis.backlash_load.load_estimate): without
 restitution it fills stretches of contact at once, and must give what stepping every
 sample gives, to the last bit (the diagnosis' verdicts must not move with its speed)."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stand.diagnosis.model import load_estimate
+from stand.diagnosis.backlash_load import load_estimate
 
 DT_S = 1e-3
 
