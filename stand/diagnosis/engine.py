@@ -10,7 +10,7 @@
    A candidate counts only when the same search on HOLDOUT finds the same effect
    again (same order or delay, similar size: each effect's ``agree``). An effect that
    a TRAIN run of one frequency cannot resolve (a delay) is picked across the two runs
-   there instead (``_Bench.across``).
+   there instead (``Bench.across``).
 4. Take the significant candidate with the smallest gap (an effect that nests it, as
    Stribeck friction nests Coulomb friction, wins over it when it is significant
    itself, i.e. when both runs resolve what it adds, unless the nested effect simulates
@@ -25,12 +25,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import cache, cached_property
-
-import numpy as np
 
 from stand import effects
-from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, fit
+from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual
 from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
     UNEXPLAINED_FACTOR,
@@ -40,169 +37,25 @@ from stand.diagnosis.noise import (
     noise_gap_percent,
     unexplained,
 )
-from stand.diagnosis.notes import aliases, limits, single_tone_hz
+from stand.diagnosis.notes import aliases, limits
 from stand.diagnosis.report import Diagnosis, EffectScore, SelectionStep, Traces
+from stand.diagnosis.scoring import Bench, Scored
 from stand.diagnosis.signals import Signals, prepare
-from stand.diagnosis.significance import MIN_SHRINK, PairedTest, paired_improvement
-from stand.diagnosis.simulate import Segments, segments, simulate
+from stand.diagnosis.significance import PairedTest, paired_improvement
 from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
-from stand.effects.base import NO_FIT, Effect
+from stand.effects.base import NO_FIT
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run
 
 #: Free-run length between re-anchorings of the simulation, s.
 ANCHOR_HORIZON_S = 0.1
-#: Fewest segments for the paired test (the horizon shrinks on short runs).
-MIN_SEGMENTS = 12
 #: Most effects combined in a verdict.
 MAX_EFFECTS = 3
 #: Input reconstructions tried for the nominal model (see ``ModelSpec.input_weight``).
 INPUT_WEIGHTS: tuple[float, ...] = (0.5, 0.625, 0.75, 0.875, 1.0)
 #: Halvings of the weight step around the best grid weight (to 1/64 of a period).
 WEIGHT_REFINEMENTS = 3
-
-
-@dataclass(frozen=True)
-class _Scored:
-    spec: ModelSpec
-    model: FittedModel
-    sse: np.ndarray
-    gap: float
-    error: np.ndarray
-    consistent: bool = False
-    #: HOLDOUT scorings a hyper-parameter of the spec was picked from (1: picked on
-    #: TRAIN alone); the holdout test pays a Bonferroni factor of this many.
-    looks: int = 1
-
-
-class _Bench:
-    """TRAIN and HOLDOUT prepared once; scores a model spec on them."""
-
-    def __init__(self, train: Signals, holdout: Signals, horizon_s: float) -> None:
-        self.train, self.holdout, self.horizon_s = train, holdout, horizon_s
-        self.seg: Segments = segments(len(holdout), holdout.dt_s, horizon_s, MIN_SEGMENTS)
-        if len(self.seg.starts) < 2:
-            raise InputError(f"{holdout.source}: too short for a holdout test; record longer")
-        self.measured = holdout.omega_meas[self.seg.index]
-        self.scale = float(np.sqrt(np.mean((self.measured - self.measured.mean()) ** 2)))
-        if self.scale == 0.0:
-            raise NotExcitedError(f"{holdout.source}: the speed never varies; nothing to compare")
-        #: Effects a run could not identify beside a base model, each with the effects
-        #: of that base model (their regressors were linearly dependent there).
-        self.aliased: dict[str, tuple[str, ...]] = {}
-
-    def score(self, spec: ModelSpec) -> _Scored:
-        """``spec`` identified on TRAIN, simulated on HOLDOUT."""
-        return self.score_model(fit(spec, self.train))
-
-    def score_model(self, model: FittedModel) -> _Scored:
-        """``model`` simulated on HOLDOUT: its error, gap and per-segment squared errors."""
-        spec = model.spec
-        error = simulate(model, self.holdout, self.seg) - self.measured
-        error = np.where(np.isfinite(error), error, 1e6 * self.scale)
-        error = np.clip(error, -1e6 * self.scale, 1e6 * self.scale)
-        gap = 100.0 * float(np.sqrt(np.mean(error**2))) / self.scale
-        residual = equation_residual(model, self.holdout)[self.seg.index]
-        sse = np.stack([np.sum(error**2, axis=1), np.sum(residual**2, axis=1)])
-        return _Scored(spec, model, sse, gap, error)
-
-    @cached_property
-    def tone_hz(self) -> float | None:
-        """TRAIN's current frequency when it is one frequency (:func:`.notes.single_tone_hz`)."""
-        return single_tone_hz(self.train)
-
-    @cached_property
-    def reverse(self) -> _Bench:
-        """The same runs the other way round: identified on HOLDOUT, scored on TRAIN."""
-        return _Bench(self.holdout, self.train, self.horizon_s)
-
-    def candidate(self, name: str, base: _Scored,
-                  worth_checking: Callable[[_Scored], bool] | None = None) -> _Scored:
-        """``base`` plus effect ``name``, identified on TRAIN, scored on HOLDOUT, and
-        checked for consistency: the same search on HOLDOUT must find the same effect
-        (or, for an effect whose TRAIN structure is re-fitted there, the same sizes: a
-        hyper-parameter with a flat optimum, such as the Stribeck velocity, can land
-        elsewhere in a fresh search for a real effect).
-
-        An effect whose model with ``base`` one of the runs does not determine (its
-        regressors linearly dependent on the base model's there: a current offset
-        beside Coulomb friction on a shaft that never reverses) is no fit, and noted in
-        :attr:`aliased`: that run cannot tell them apart, which is an answer, not a
-        reason to refuse the diagnosis.
-
-        With ``worth_checking``, the search on HOLDOUT runs only for a candidate it
-        accepts (its holdout test, say); any other is left not consistent unchecked.
-        """
-        effect = effects.get(name)
-        try:
-            return self._candidate(effect, base, worth_checking)
-        except NotExcitedError:
-            self.aliased.setdefault(name, tuple(e.name for e in effects.all_effects()
-                                                if e.present(base.spec)))
-            return replace(base, spec=NO_FIT, consistent=False)
-
-    def _candidate(self, effect: type[Effect], base: _Scored,
-                   worth_checking: Callable[[_Scored], bool] | None) -> _Scored:
-        if effect.across_runs_on_one_tone and self.tone_hz is not None:
-            return self.across(effect, base)
-        spec = effect.search(base.spec, self.train, self.simulated(effect, self.train))
-        if spec == NO_FIT:
-            return replace(base, spec=NO_FIT, consistent=False)
-        scored = self.score(spec)
-        if worth_checking is not None and not worth_checking(scored):
-            return scored
-        if effect.refit_on_holdout:
-            again = spec
-        else:
-            again = effect.search(base.spec, self.holdout, self.simulated(effect, self.holdout))
-            if again == NO_FIT:
-                return scored
-        consistent = effect.agree(scored.model, fit(again, self.holdout))
-        return replace(scored, consistent=consistent)
-
-    def simulated(self, effect: type[Effect], sig: Signals
-                  ) -> Callable[[ModelSpec], float] | None:
-        """For an effect whose search picks by simulation, a spec's gap when identified
-        on ``sig`` and simulated on ``sig`` itself (TRAIN or HOLDOUT: each run's search
-        stays within that run); else None."""
-        if not effect.picked_by_simulation:
-            return None
-        on_itself = self.on_train if sig is self.train else self.reverse.on_train
-        return cache(lambda spec: on_itself.score(spec).gap)
-
-    @cached_property
-    def on_train(self) -> _Bench:
-        """TRAIN against itself: identified and simulated on TRAIN."""
-        return _Bench(self.train, self.train, self.horizon_s)
-
-    def across(self, effect: type[Effect], base: _Scored) -> _Scored:
-        """``base`` plus ``effect`` (a delay), when TRAIN's current is one frequency.
-
-        There a delay is a phase lag of the current, which ``Kt/J`` and ``D/J`` absorb:
-        every delay fits TRAIN alike, each with its own ``Kt/J`` and ``D/J``, and
-        simulates another frequency differently. Two runs at different frequencies
-        resolve it together, as two-fold cross-validation: each spec of the effect's
-        ``grid`` is fitted on TRAIN and simulated on HOLDOUT, and fitted on HOLDOUT and
-        simulated on TRAIN. The candidate is the spec that simulates HOLDOUT best,
-        unless that is the grid's unbracketed end (no fit). It is consistent when the
-        spec that simulates TRAIN best is the same within the effect's resolution
-        (``same``), bracketed too, and shrinks TRAIN's gap of the base model fitted on
-        HOLDOUT by ``MIN_SHRINK`` at least. Having been picked on HOLDOUT, its holdout
-        test pays for the grid (``looks``).
-        """
-        grid = effect.grid(base.spec)
-        forward = [self.score(spec) for spec in grid]
-        reverse = self.reverse
-        backward = [reverse.score(spec).gap for spec in grid]
-        ahead = int(np.argmin([s.gap for s in forward]))
-        back = int(np.argmin(backward))
-        if not effect.bracketed(grid[ahead]):
-            return replace(base, spec=NO_FIT, consistent=False)
-        consistent = (effect.bracketed(grid[back])
-                      and effect.same(grid[ahead], grid[back])
-                      and backward[back] <= (1.0 - MIN_SHRINK) * reverse.score(base.spec).gap)
-        return replace(forward[ahead], consistent=consistent, looks=len(grid))
 
 
 @dataclass(frozen=True)
@@ -241,7 +94,7 @@ def compare_on_holdout(train: Run, holdout: Run,
         Runs too short for a holdout test.
     """
     tr, ho = prepare(train), prepare(holdout)
-    bench = _Bench(tr, ho, horizon_s)
+    bench = Bench(tr, ho, horizon_s)
     base_spec = _nominal_spec(bench.on_train, False)
     nominal = bench.score(base_spec)
     other = bench.score_model(model_of(base_spec, tr))
@@ -301,7 +154,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
             f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
-    bench = _Bench(tr, ho, horizon_s)
+    bench = Bench(tr, ho, horizon_s)
     base = bench.score(_nominal_spec(bench.on_train, spring))
     singles = {name: bench.candidate(name, base) for name in effects.EFFECTS}
     n_tests = len(singles)
@@ -363,9 +216,9 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
             "residual_where locates it"]
 
 
-def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
+def _select(bench: Bench, base: Scored, singles: dict[str, Scored],
             scores: dict[str, EffectScore], max_effects: int
-            ) -> tuple[list[str], _Scored, list[SelectionStep]]:
+            ) -> tuple[list[str], Scored, list[SelectionStep]]:
     """The verdict's effects, the model with them, and the step that added each."""
     significant = [n for n in singles if scores[n].significant]
     if not significant:
@@ -386,7 +239,7 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
         remaining = [n for n in effects.EFFECTS if n not in chosen
                      and not set(effects.nested_in(n)) & set(chosen)]
         # only a trial that passes its test can enter: the others need no consistency check
-        def passes(s: _Scored, tests: int = len(remaining), before: _Scored = current) -> bool:
+        def passes(s: Scored, tests: int = len(remaining), before: Scored = current) -> bool:
             return _improvement(before, s).significant(tests)
 
         trials = {n: bench.candidate(n, current, passes) for n in remaining}
@@ -403,14 +256,14 @@ def _select(bench: _Bench, base: _Scored, singles: dict[str, _Scored],
     return chosen, current, steps
 
 
-def _step(name: str, after: list[str], before: _Scored, added: _Scored,
+def _step(name: str, after: list[str], before: Scored, added: Scored,
           p_value: float) -> SelectionStep:
     return SelectionStep(effect=name, after=list(after), gap_before_percent=before.gap,
                          gap_percent=added.gap, shrink=1.0 - added.gap / before.gap,
                          p_value=p_value)
 
 
-def _improvement(base: _Scored, cand: _Scored) -> PairedTest:
+def _improvement(base: Scored, cand: Scored) -> PairedTest:
     """The paired holdout test of ``cand`` against ``base``.
 
     A candidate that adds an effect tested on the speed alone (``speed_test_only``: a
@@ -425,9 +278,9 @@ def _improvement(base: _Scored, cand: _Scored) -> PairedTest:
     return replace(test, p_value=min(1.0, test.p_value * cand.looks))
 
 
-def _nominal_spec(on_train: _Bench, spring: bool) -> ModelSpec:
+def _nominal_spec(on_train: Bench, spring: bool) -> ModelSpec:
     """The nominal model with the input reconstruction that simulates TRAIN best
-    (``on_train``: TRAIN against itself, :attr:`_Bench.on_train`).
+    (``on_train``: TRAIN against itself, :attr:`Bench.on_train`).
 
     The weight is picked on the grid ``INPUT_WEIGHTS`` and then refined by halving the
     step around the best one ``WEIGHT_REFINEMENTS`` times, within the grid's range. Where
