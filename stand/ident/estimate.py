@@ -18,7 +18,7 @@ matrices of ``[y, X, Z]`` over ``B`` contiguous blocks of the run:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import t as student_t
@@ -79,6 +79,15 @@ class Estimate:
     def value(self, name: str) -> float:
         """Coefficient of column ``name``."""
         return float(self.beta[self.names.index(name)])
+
+    def with_variance(self, name: str, extra: float) -> Estimate:
+        """This estimate with ``extra`` added to the variance of coefficient ``name``: an
+        uncertainty the block sandwich does not see (which model describes the run, a
+        scale of the input taken from elsewhere)."""
+        k = self.names.index(name)
+        cov = self.cov.copy()
+        cov[k, k] += extra
+        return replace(self, cov=cov)
 
     def interval(self, name: str, sign: float = 1.0) -> list[float]:
         """95 % interval of ``sign·β[name]``, ``[low, high]``."""

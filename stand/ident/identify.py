@@ -32,7 +32,7 @@ from stand.ident.estimate import Estimate, block_count, solve_blocks
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
 from stand.ident.select import Fitter, model_variance, parse_effects, select
-from stand.ident.speed_loop import speed_loop, with_gain_uncertainty
+from stand.ident.speed_loop import speed_loop
 from stand.jsonable import JsonResult
 from stand.runfile import Run
 
@@ -281,10 +281,11 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     spec, est = chosen.spec, chosen.estimate
     if estimator == "auto":
         estimator, spec, est = _pick_estimator(design, spec, est, run.source)
-    est = with_model_variance(est, model_variance(fitter, chosen))
+    est = est.with_variance("current", model_variance(fitter, chosen))
     if loop is not None and loop.holds:
         if from_loop:
-            est = with_gain_uncertainty(est, "current", loop.kp_rel_sd)
+            # Kt/J scales as 1/kp: kp's relative uncertainty is Kt/J's
+            est = est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
         else:
             warnings.append("the current reconstructed from the PI speed law fits the motion "
                             "worse than the sampled current (the loop may saturate between "
@@ -295,15 +296,6 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     timing = spec.delay + current_weight(spec, est)
     return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
                    warnings, estimator, timing)
-
-
-def with_model_variance(est: Estimate, variance: float) -> Estimate:
-    """``est`` with ``variance`` (rad/(s²·A))² added to that of Kt/J: the uncertainty of
-    which model describes the run (:func:`~stand.ident.select.model_variance`)."""
-    k = est.names.index("current")
-    cov = est.cov.copy()
-    cov[k, k] += variance
-    return replace(est, cov=cov)
 
 
 def current_weight(spec: ModelSpec, est: Estimate) -> float:

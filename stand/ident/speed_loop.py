@@ -38,12 +38,11 @@ two fits enters the uncertainty of Kt/J.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from stand.diagnosis.signals import quantization_step
-from stand.ident.estimate import Estimate
 from stand.ident.noise import noise_sigma
 from stand.runfile import Run
 
@@ -273,12 +272,3 @@ def speed_loop(run: Run) -> SpeedLoop | None:
     theta = run["position_rad"]
     return fit_speed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
                           quantization_step(theta))
-
-
-def with_gain_uncertainty(est: Estimate, name: str, rel_sd: float) -> Estimate:
-    """``est`` with a relative standard uncertainty ``rel_sd`` of the current's scale
-    added to the variance of coefficient ``name`` (Kt/J scales as 1/kp)."""
-    k = est.names.index(name)
-    cov = est.cov.copy()
-    cov[k, k] += (rel_sd * est.beta[k]) ** 2
-    return replace(est, cov=cov)
