@@ -209,7 +209,7 @@ def periodic_mean(order: int, theta: np.ndarray,
 
 
 
-def _periodic_column(order: int, sig: Signals, sine: bool) -> np.ndarray:
+def periodic_column(order: int, sig: Signals, sine: bool) -> np.ndarray:
     """Mean of ``sin(N·θ)`` (or cos) over the period after each sample, the filtered
     position taken as moving linearly between samples (both computed once per order
     and cached on ``sig``: the two columns of an order are always used together)."""
@@ -246,10 +246,10 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         ws = spec.stribeck_ws or 1.0
         return velocity_sign(omega, sig) * np.exp(-((omega / ws) ** 2))
     if name in ("cog_sin", "cog_cos"):
-        return at_samples(_periodic_column(spec.cogging_N or 0, sig, name == "cog_sin"))
+        return at_samples(periodic_column(spec.cogging_N or 0, sig, name == "cog_sin"))
     if name in ("rip_sin", "rip_cos"):
         current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
-        periodic = _periodic_column(spec.ripple_N or 0, sig, name == "rip_sin")
+        periodic = periodic_column(spec.ripple_N or 0, sig, name == "rip_sin")
         return at_samples(current * periodic)
     if name == "load_accel":
         omega_l = load_state(sig, spec.backlash_gap or 0.0, spec.backlash_restitution)[1]
@@ -469,5 +469,5 @@ def nominal() -> ModelSpec:
 
 
 __all__ = ["FittedModel", "ModelSpec", "equation_residual", "fit", "fit_residual_batch",
-           "interval_current", "nominal", "periodic_mean",
+           "interval_current", "nominal", "periodic_column", "periodic_mean",
            "regressors", "shifted", "velocity_sign"]

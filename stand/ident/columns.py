@@ -39,7 +39,7 @@ import numpy as np
 from stand.diagnosis.model import (
     ModelSpec,
     interval_current,
-    periodic_mean,
+    periodic_column,
     shifted,
     velocity_sign,
 )
@@ -132,8 +132,8 @@ class Design:
         if name == "current":
             return self.current(spec, instrument)
         if name == TIMING_COLUMN:
-            step = interval_current(shifted(self.sig.current, spec.delay), 1.0) - \
-                interval_current(shifted(self.sig.current, spec.delay), 0.0)
+            current = shifted(sig.current, spec.delay)
+            step = interval_current(current, 1.0) - interval_current(current, 0.0)
             return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
@@ -146,9 +146,7 @@ class Design:
                 column = column * np.exp(-((omega / (spec.stribeck_ws or 1.0)) ** 2))
             return np.asarray(column.mean(axis=1))
         order = (spec.cogging_N if name.startswith("cog") else spec.ripple_N) or 0
-        step = np.concatenate([np.diff(sig.theta_f), [0.0]])
-        s, c = periodic_mean(order, sig.theta_f, step)
-        periodic = s if name.endswith("sin") else c
+        periodic = periodic_column(order, sig, name.endswith("sin"))
         if name.startswith("rip"):
             return self.current(spec, instrument) * periodic
         return periodic
@@ -213,9 +211,8 @@ class Design:
             elif name == TIMING_COLUMN:
                 sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0), ones)
             elif name in ("rip_sin", "rip_cos"):
-                step = np.concatenate([np.diff(self.sig.theta_f), [0.0]])
-                s, c = periodic_mean(spec.ripple_N or 0, self.sig.theta_f, step)
-                sources[name] = (own, s if name == "rip_sin" else c)
+                sources[name] = (own, periodic_column(spec.ripple_N or 0, self.sig,
+                                                      name == "rip_sin"))
         h = self.half_width
         out = np.zeros((len(names), len(names)))
         for j, a in enumerate(names):
