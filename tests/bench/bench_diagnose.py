@@ -21,6 +21,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from tests.bench.diagnose.benchmark import (  # noqa: E402
+    CLASSES,
     MIN_EFFECT_SNR,
     confusion_table,
     rescore,
@@ -48,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="which outside effects: those looked at in the design of the "
                         "rule, or the set held out of all tuning")
     parser.add_argument("--first", type=int, default=0, help="index of the first case")
+    parser.add_argument("--classes", nargs="+", choices=CLASSES,
+                        help="run only the cases of these classes among the --cases drawn "
+                        "(same case numbers as a full run)")
     parser.add_argument("--no-timing", action="store_true", help="skip the timing case")
     parser.add_argument("--rows", help="write every case as JSON lines to this file, each "
                         "as soon as it is in")
@@ -74,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
 
         rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr,
                              outside_share=args.outside_share, first=args.first,
-                             outside_set=args.outside_set, on_row=keep)
+                             outside_set=args.outside_set, on_row=keep,
+                             classes=tuple(args.classes) if args.classes else None)
         if out:
             out.close()
     wall = time.perf_counter() - start

@@ -117,13 +117,7 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     side = np.random.default_rng([seed, index, 11])
     if side.random() < outside_share:
         return _draw_outside_case(stand, side, min_snr, duration_s, OUTSIDE_SETS[outside_set])
-    u = rng.random()
-    count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
-    names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
-    truth = [EFFECTS[k] for k in names]
-    # an effect nested in another drawn with it (Coulomb friction in Stribeck's) is
-    # already there
-    truth = [t for t in truth if not set(nested_in(t)) & set(truth)]
+    truth = _draw_truth(rng)
     draws = 0
     for attempt in range(STAND_DRAWS):
         if attempt:
@@ -139,6 +133,33 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
             if case.snr >= min_snr:
                 return case
     return case
+
+
+def _draw_truth(rng: np.random.Generator) -> list[str]:
+    """The vocabulary effects of a case: none, one or two, drawn from ``rng`` right after
+    the stand."""
+    u = rng.random()
+    count = 0 if u < NONE_SHARE else 2 if u < NONE_SHARE + PAIR_SHARE else 1
+    names = sorted(rng.choice(len(EFFECTS), size=count, replace=False).tolist())
+    truth = [EFFECTS[k] for k in names]
+    # an effect nested in another drawn with it (Coulomb friction in Stribeck's) is
+    # already there
+    return [t for t in truth if not set(nested_in(t)) & set(truth)]
+
+
+#: Case classes a benchmark can be restricted to (:func:`case_class`).
+CLASSES = ("none", "single", "pairs", "outside")
+
+
+def case_class(index: int, seed: int, outside_share: float = 0.0) -> str:
+    """The class of case ``index`` of seed ``seed`` (one of :data:`CLASSES`), from the
+    first draws of :func:`draw_case` alone: no simulation, so a benchmark restricted to
+    one class skips the others at no cost and keeps their case numbers."""
+    rng = np.random.default_rng([seed, index])
+    _draw_stand(index, seed, rng)
+    if np.random.default_rng([seed, index, 11]).random() < outside_share:
+        return "outside"
+    return {0: "none", 1: "single", 2: "pairs"}[len(_draw_truth(rng))]
 
 
 def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
@@ -407,12 +428,14 @@ def _run_case_args(args: tuple[int, int, float, float, float, str]) -> dict[str,
 def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = RUN_DURATION_S,
                   min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
                   first: int = 0, outside_set: str = "tuning",
-                  on_row: Callable[[dict[str, Any]], None] | None = None
-                  ) -> list[dict[str, Any]]:
-    """Run ``cases`` blind cases (from index ``first``) with ``workers`` processes; rows
-    in case order, each also handed to ``on_row`` as soon as it is in."""
+                  on_row: Callable[[dict[str, Any]], None] | None = None,
+                  classes: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+    """Run the blind cases ``first`` .. ``first + cases - 1`` with ``workers`` processes;
+    with ``classes``, only those of these classes (:func:`case_class`). Rows in case
+    order, each also handed to ``on_row`` as soon as it is in."""
     jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set)
-            for index in range(first, first + cases)]
+            for index in range(first, first + cases)
+            if classes is None or case_class(index, seed, outside_share) in classes]
     rows = []
     if workers <= 1:
         for job in jobs:
