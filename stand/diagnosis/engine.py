@@ -197,7 +197,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         residual_where=locate(equation_residual(final.model, ho), ho),
         model={**_nominal_dict(final.model, kt), **verdict_params},
         noise_gap_percent=noise_gap,
-        notes=(limits(tr, bench.tone_hz) + aliases(bench.aliased)
+        notes=(limits(tr, bench.tone_hz) + aliases(bench.aliased) + bench.revisions
                + _approximation_note(base.gap, final.gap, noise_gap, left)),
         steps=steps), traces
 
@@ -253,7 +253,93 @@ def _select(bench: Bench, base: Scored, singles: dict[str, Scored],
         steps.append(_step(best, chosen, current, passed[best], tests[best].p_value))
         chosen.append(best)
         current = passed[best]
+    if len(chosen) > 1:
+        revised, final, notes = _revise(bench, chosen, current)
+        if revised != chosen:
+            steps = _rebuilt_steps(bench, base, revised, final)
+            bench.revisions.extend(notes)
+            return revised, final, steps
     return chosen, current, steps
+
+
+def _revise(bench: Bench, chosen: list[str], current: Scored
+            ) -> tuple[list[str], Scored, list[str]]:
+    """A backward pass over a verdict of several effects, each judged with the others
+    in the model (the greedy order tested each only against the effects before it).
+
+    1. The friction form: where a chosen effect nests another or is nested in one
+       (Stribeck and Coulomb friction), the two forms are compared again with the other
+       effects in the model, by the rule of the first step: the nesting form stays (or
+       comes in) only when, searched beside the others, both runs resolve what it adds
+       (its consistency) and the nested form does not simulate HOLDOUT significantly
+       better. A static excess fitted before a position-periodic torque was in the model
+       can be that torque's low-speed share.
+    2. Elimination: an effect whose removal from the joint model (the others re-fitted,
+       their hyper-parameters kept) HOLDOUT's paired test does not reject
+       (Bonferroni over the verdict's effects) is dropped, the weakest first, until every
+       effect left is needed beside the others.
+
+    Returns the effects, the model with them, and a note per change.
+    """
+    chosen, notes = list(chosen), []
+    for name in list(chosen):
+        rivals = [n for n in (*effects.get(name).nests, *effects.nested_in(name))
+                  if n not in chosen]
+        if not rivals:
+            continue
+        rest = bench.score(effects.get(name).without(current.spec))
+        forms = {name: current}
+        for other in rivals:
+            forms[other] = bench.candidate(other, rest)
+        nested = [n for n in forms if forms[n].spec != NO_FIT and not effects.get(n).nests]
+        outer = [n for n in forms if forms[n].spec != NO_FIT and effects.get(n).nests]
+        if not nested or not outer:
+            continue
+        inner, wide = nested[0], outer[0]
+        keep_outer = (forms[wide].consistent
+                      and _improvement(rest, forms[wide]).significant(1)
+                      and not _improvement(forms[wide], forms[inner]).significant(1))
+        pick = wide if keep_outer else inner
+        if pick != name:
+            others = [n for n in chosen if n != name]
+            notes.append(f"{pick} instead of {name} once {'+'.join(others)} "
+                         f"{'is' if len(others) == 1 else 'are'} in the model (friction "
+                         f"form tested beside the other effects: gap {current.gap:.2f} -> "
+                         f"{forms[pick].gap:.2f} %)")
+            chosen[chosen.index(name)] = pick
+            current = forms[pick]
+    while len(chosen) > 1:
+        tests = {}
+        reduced = {}
+        for name in chosen:
+            reduced[name] = bench.score(effects.get(name).without(current.spec))
+            tests[name] = _improvement(reduced[name], current)
+        weakest = max(chosen, key=lambda n: tests[n].p_value)
+        if tests[weakest].significant(len(chosen)):
+            break
+        t = tests[weakest]
+        notes.append(f"{weakest} left out: beside {'+'.join(n for n in chosen if n != weakest)} "
+                     f"it is not needed (gap {reduced[weakest].gap:.2f} % without it, "
+                     f"{current.gap:.2f} % with it, shrink {t.shrink:.2f}, p {t.p_value:.2g})")
+        chosen.remove(weakest)
+        current = reduced[weakest]
+    return chosen, current, notes
+
+
+def _rebuilt_steps(bench: Bench, base: Scored, chosen: list[str], final: Scored
+                   ) -> list[SelectionStep]:
+    """The steps of a revised verdict: each effect added to the ones before it, at the
+    final model's hyper-parameters (the others taken out of it)."""
+    steps, before = [], base
+    for k, name in enumerate(chosen):
+        spec = final.spec
+        for later in chosen[k + 1:]:
+            spec = effects.get(later).without(spec)
+        added = final if k == len(chosen) - 1 else bench.score(spec)
+        steps.append(_step(name, chosen[:k], before, added,
+                           _improvement(before, added).p_value))
+        before = added
+    return steps
 
 
 def _step(name: str, after: list[str], before: Scored, added: Scored,

@@ -59,6 +59,8 @@ class Bench:
         #: Effects a run could not identify beside a base model, each with the effects
         #: of that base model (their regressors were linearly dependent there).
         self.aliased: dict[str, tuple[str, ...]] = {}
+        #: What the selection's backward pass changed in the verdict, in words.
+        self.revisions: list[str] = []
 
     def score(self, spec: ModelSpec) -> Scored:
         """``spec`` identified on TRAIN, simulated on HOLDOUT."""

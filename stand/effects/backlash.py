@@ -51,6 +51,7 @@ class Backlash(Effect):
 
     name: ClassVar[str] = "backlash"
     columns: ClassVar[tuple[str, ...]] = ("load_accel",)
+    spec_fields: ClassVar[tuple[str, ...]] = ("backlash_gap", "backlash_restitution")
     units: ClassVar[dict[str, str]] = {"gap": "rad", "restitution": "1",
                                        "J_load_over_J": "1", "J_load": "kg·m²"}
     # an impact within a sample period, through a contact that is not rigid, leaves an

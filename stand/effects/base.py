@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -72,6 +72,8 @@ class Effect:
     separated_by : str
         The experiment that tells this effect apart from others it can alias with, in
         words (said when a run cannot).
+    spec_fields : tuple of str
+        The :class:`ModelSpec` fields that model it (reset by :meth:`without`).
     """
 
     name: ClassVar[str]
@@ -83,6 +85,7 @@ class Effect:
     speed_test_only: ClassVar[bool] = False
     across_runs_on_one_tone: ClassVar[bool] = False
     separated_by: ClassVar[str] = "a broadband command (e.g. a PRBS) that crosses zero"
+    spec_fields: ClassVar[tuple[str, ...]] = ()
 
     # --- physics ---------------------------------------------------------------------
 
@@ -106,6 +109,13 @@ class Effect:
     def present(cls, spec: ModelSpec) -> bool:
         """Whether ``spec`` models this effect."""
         return any(column in spec.names() for column in cls.columns)
+
+    @classmethod
+    def without(cls, spec: ModelSpec) -> ModelSpec:
+        """``spec`` with this effect taken out, the other effects' hyper-parameters as
+        they are."""
+        nominal = ModelSpec()
+        return replace(spec, **{f: getattr(nominal, f) for f in cls.spec_fields})
 
     @classmethod
     def search(cls, base: ModelSpec, train: Signals,

@@ -35,6 +35,7 @@ class Cogging(Effect):
 
     name: ClassVar[str] = "cogging"
     columns: ClassVar[tuple[str, ...]] = ("cog_sin", "cog_cos")
+    spec_fields: ClassVar[tuple[str, ...]] = ("cogging_N",)
     units: ClassVar[dict[str, str]] = {"Tcog_over_Kt_A": "A", "Tcog": "N·m",
                                        "N": "cycles/rev", "phi": "rad"}
 

@@ -23,6 +23,7 @@ class CoulombFriction(Effect):
 
     name: ClassVar[str] = "coulomb_friction"
     columns: ClassVar[tuple[str, ...]] = ("sign",)
+    spec_fields: ClassVar[tuple[str, ...]] = ("coulomb",)
     units: ClassVar[dict[str, str]] = {"Tc_over_Kt_A": "A", "Tc": "N·m"}
     # friction changes sign with the speed, a constant torque does not
     separated_by: ClassVar[str] = REVERSING_COMMAND

@@ -23,6 +23,7 @@ class CurrentOffset(Effect):
 
     name: ClassVar[str] = "current_offset"
     columns: ClassVar[tuple[str, ...]] = ("one",)
+    spec_fields: ClassVar[tuple[str, ...]] = ("offset",)
     units: ClassVar[dict[str, str]] = {"i0": "A"}
     # an offset keeps its sign when the shaft reverses, friction does not
     separated_by: ClassVar[str] = REVERSING_COMMAND

@@ -35,6 +35,7 @@ class Delay(Effect):
     """
 
     name: ClassVar[str] = "delay"
+    spec_fields: ClassVar[tuple[str, ...]] = ("delay",)
     units: ClassVar[dict[str, str]] = {"k": "samples"}
     # on a current of one frequency a delay is a phase lag that Kt/J and D/J absorb
     across_runs_on_one_tone: ClassVar[bool] = True

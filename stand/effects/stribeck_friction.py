@@ -48,6 +48,7 @@ class StribeckFriction(Effect):
 
     name: ClassVar[str] = "stribeck_friction"
     columns: ClassVar[tuple[str, ...]] = ("sign", "stribeck")
+    spec_fields: ClassVar[tuple[str, ...]] = ("stribeck_ws",)
     units: ClassVar[dict[str, str]] = {"Tc_over_Kt_A": "A", "Tc": "N·m", "Ts_over_Kt_A": "A",
                                        "Ts": "N·m", "ws": "rad/s"}
     nests: ClassVar[tuple[str, ...]] = (CoulombFriction.name,)

@@ -35,6 +35,7 @@ class TorqueRipple(Effect):
 
     name: ClassVar[str] = "torque_ripple"
     columns: ClassVar[tuple[str, ...]] = ("rip_sin", "rip_cos")
+    spec_fields: ClassVar[tuple[str, ...]] = ("ripple_N",)
     units: ClassVar[dict[str, str]] = {"eps": "1", "N": "cycles/rev", "phi": "rad"}
 
     eps: float
