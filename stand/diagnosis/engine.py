@@ -283,31 +283,29 @@ def _revise(bench: Bench, chosen: list[str], current: Scored
     """
     chosen, notes = list(chosen), []
     for name in list(chosen):
-        rivals = [n for n in (*effects.get(name).nests, *effects.nested_in(name))
-                  if n not in chosen]
+        effect = effects.get(name)
+        rivals = [n for n in (*effect.nests, *effects.nested_in(name)) if n not in chosen]
         if not rivals:
             continue
-        rest = bench.score(effects.get(name).without(current.spec))
-        forms = {name: current}
-        for other in rivals:
-            forms[other] = bench.candidate(other, rest)
-        nested = [n for n in forms if forms[n].spec != NO_FIT and not effects.get(n).nests]
-        outer = [n for n in forms if forms[n].spec != NO_FIT and effects.get(n).nests]
-        if not nested or not outer:
-            continue
-        inner, wide = nested[0], outer[0]
-        keep_outer = (forms[wide].consistent
-                      and _improvement(rest, forms[wide]).significant(1)
-                      and not _improvement(forms[wide], forms[inner]).significant(1))
+        rest = bench.score(effect.without(current.spec))
+        # both forms searched again beside the others (hyper-parameters, consistency)
+        forms = {n: bench.candidate(n, rest) for n in (name, rivals[0])}
+        wide, inner = (name, rivals[0]) if effect.nests else (rivals[0], name)
+        outer_form, inner_form = forms[wide], forms[inner]
+        keep_outer = (outer_form.spec != NO_FIT and outer_form.consistent
+                      and _improvement(rest, outer_form).significant(1)
+                      and (inner_form.spec == NO_FIT
+                           or not _improvement(outer_form, inner_form).significant(1)))
         pick = wide if keep_outer else inner
-        if pick != name:
-            others = [n for n in chosen if n != name]
-            notes.append(f"{pick} instead of {name} once {'+'.join(others)} "
-                         f"{'is' if len(others) == 1 else 'are'} in the model (friction "
-                         f"form tested beside the other effects: gap {current.gap:.2f} -> "
-                         f"{forms[pick].gap:.2f} %)")
-            chosen[chosen.index(name)] = pick
-            current = forms[pick]
+        if pick == name or forms[pick].spec == NO_FIT:
+            continue
+        others = [n for n in chosen if n != name]
+        notes.append(f"{pick} instead of {name} once {'+'.join(others)} "
+                     f"{'is' if len(others) == 1 else 'are'} in the model (the friction "
+                     f"form tested beside the other effects: gap {current.gap:.2f} -> "
+                     f"{forms[pick].gap:.2f} %)")
+        chosen[chosen.index(name)] = pick
+        current = forms[pick]
     while len(chosen) > 1:
         tests = {}
         reduced = {}

@@ -4,8 +4,14 @@ cannot be separated, and the experiment that would) on runs that never reverse."
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from stand import effects
 from stand.diagnosis import Diagnosis, diagnose
+from stand.diagnosis.engine import ANCHOR_HORIZON_S, _nominal_spec, _revise
+from stand.diagnosis.model import ModelSpec
+from stand.diagnosis.scoring import Bench, Scored
+from stand.diagnosis.signals import Signals, prepare
 from stand.excitation import excitation
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams
@@ -68,3 +74,45 @@ def test_steps_of_a_verdict_of_one_effect() -> None:
 def test_an_effect_free_verdict_has_no_steps() -> None:
     result = diagnose(*stand_runs({}))
     assert result.verdict == "none" and result.steps == []
+
+
+def _joint(planted: dict[str, dict[str, float]], spec_of: Callable[[ModelSpec, Signals], ModelSpec]
+           ) -> tuple[Bench, Scored]:
+    """The test stand's runs with ``planted`` on a bench, and the model ``spec_of(nominal,
+    train)`` identified on TRAIN and scored on HOLDOUT."""
+    train, holdout = stand_runs(planted)
+    bench = Bench(prepare(train), prepare(holdout), ANCHOR_HORIZON_S)
+    nominal = _nominal_spec(bench.on_train, False)
+    return bench, bench.score(spec_of(nominal, bench.train))
+
+
+def test_the_friction_form_is_decided_again_beside_cogging() -> None:
+    """Coulomb friction and cogging planted; a verdict that holds Stribeck friction beside
+    the cogging (as a greedy order can leave it) is revised to Coulomb friction: with the
+    cogging in the model neither run resolves a static excess."""
+    planted = {"coulomb_friction": PLANTED["coulomb_friction"], "cogging": PLANTED["cogging"]}
+
+    def spec_of(nominal: ModelSpec, train: Signals) -> ModelSpec:
+        # a Stribeck velocity of a twentieth of the top speed, fitted beside the cogging
+        return nominal.merged(ModelSpec(stribeck_ws=0.05 * train.top_speed,
+                                        cogging_N=PLANTED["cogging"]["N"]))
+
+    bench, joint = _joint(planted, spec_of)
+    assert joint.spec.stribeck_ws is not None
+    chosen, final, notes = _revise(bench, ["stribeck_friction", "cogging"], joint)
+    assert chosen == ["coulomb_friction", "cogging"], notes
+    assert final.spec.coulomb and final.spec.stribeck_ws is None
+    assert final.spec.cogging_N == PLANTED["cogging"]["N"]
+    assert any(n.startswith("coulomb_friction instead of stribeck_friction") for n in notes)
+
+
+def test_an_effect_not_needed_beside_the_others_is_dropped() -> None:
+    """Coulomb friction alone on runs that reverse; a current offset beside it adds
+    nothing, and the backward pass leaves it out (and says so)."""
+    planted = {"coulomb_friction": PLANTED["coulomb_friction"]}
+    bench, joint = _joint(planted,
+                          lambda nominal, _: nominal.merged(ModelSpec(coulomb=True, offset=True)))
+    chosen, final, notes = _revise(bench, ["coulomb_friction", "current_offset"], joint)
+    assert chosen == ["coulomb_friction"], notes
+    assert final.spec.coulomb and not final.spec.offset
+    assert any(n.startswith("current_offset left out") for n in notes)
