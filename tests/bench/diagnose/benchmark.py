@@ -314,6 +314,10 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "outside": case.outside, "snr": case.snr, "draws": case.draws,
         "scores": {e.effect: {"shrink": e.shrink, "p": e.p_value, "consistent": e.consistent,
                               "significant": e.significant} for e in result.effects},
+        # how the verdict was built: each effect's test as an addition to those before it
+        "steps": [{"effect": s.effect, "gap_before": s.gap_before_percent, "gap": s.gap_percent,
+                   "p": s.p_value} for s in result.steps],
+        "notes": result.notes,
     }
 
 
