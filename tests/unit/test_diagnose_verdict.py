@@ -8,9 +8,10 @@ from collections.abc import Callable
 
 from stand import effects
 from stand.diagnosis import Diagnosis, diagnose
-from stand.diagnosis.engine import ANCHOR_HORIZON_S, _nominal_spec, _revise
+from stand.diagnosis.engine import ANCHOR_HORIZON_S, _nominal_spec
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.scoring import Bench, Scored
+from stand.diagnosis.selection import revise
 from stand.diagnosis.signals import Signals, prepare
 from stand.excitation import excitation
 from stand.physics.effects import Effects
@@ -99,7 +100,7 @@ def test_the_friction_form_is_decided_again_beside_cogging() -> None:
 
     bench, joint = _joint(planted, spec_of)
     assert joint.spec.stribeck_ws is not None
-    chosen, final, notes = _revise(bench, ["stribeck_friction", "cogging"], joint)
+    chosen, final, notes = revise(bench, ["stribeck_friction", "cogging"], joint)
     assert chosen == ["coulomb_friction", "cogging"], notes
     assert final.spec.coulomb and final.spec.stribeck_ws is None
     assert final.spec.cogging_N == PLANTED["cogging"]["N"]
@@ -112,7 +113,7 @@ def test_an_effect_not_needed_beside_the_others_is_dropped() -> None:
     planted = {"coulomb_friction": PLANTED["coulomb_friction"]}
     bench, joint = _joint(planted,
                           lambda nominal, _: nominal.merged(ModelSpec(coulomb=True, offset=True)))
-    chosen, final, notes = _revise(bench, ["coulomb_friction", "current_offset"], joint)
+    chosen, final, notes = revise(bench, ["coulomb_friction", "current_offset"], joint)
     assert chosen == ["coulomb_friction"], notes
     assert final.spec.coulomb and not final.spec.offset
     assert any(n.startswith("current_offset left out") for n in notes)

@@ -1,0 +1,169 @@
+"""Which effects make the verdict: the greedy steps over the scored candidates, then a
+backward pass that judges each chosen effect with the others in the model.
+
+1. The best significant candidate first (an effect that nests it, as Stribeck friction
+   nests Coulomb friction, wins over it when it is significant itself, unless the nested
+   effect simulates HOLDOUT significantly better); then further effects greedily while
+   an addition improves HOLDOUT significantly against the model holding the ones before.
+2. With two or more effects, :func:`revise`: the friction form decided again beside the
+   other effects, and an effect the joint model does not need dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from stand import effects
+from stand.diagnosis.report import EffectScore, SelectionStep
+from stand.diagnosis.scoring import Bench, Scored
+from stand.diagnosis.significance import PairedTest, paired_improvement
+from stand.effects.base import NO_FIT
+
+
+def select(bench: Bench, base: Scored, singles: dict[str, Scored],
+            scores: dict[str, EffectScore], max_effects: int
+            ) -> tuple[list[str], Scored, list[SelectionStep]]:
+    """The verdict's effects, the model with them, and the step that added each."""
+    significant = [n for n in singles if scores[n].significant]
+    if not significant:
+        return [], base, []
+    first = min(significant, key=lambda n: singles[n].gap)
+    for outer in effects.nested_in(first):
+        # an effect that nests the first (Stribeck friction holds a Coulomb level) is
+        # significant only when both runs resolve what it adds (its agree), which is
+        # what makes it count, unless the nested effect alone simulates HOLDOUT
+        # significantly better
+        if (outer in significant
+                and not improvement(singles[outer], singles[first]).significant(1)):
+            first = outer
+            break
+    chosen, current = [first], singles[first]
+    steps = [_step(first, [], base, current, scores[first].p_value)]
+    while len(chosen) < max_effects:
+        remaining = [n for n in effects.EFFECTS if n not in chosen
+                     and not set(effects.nested_in(n)) & set(chosen)]
+        # only a trial that passes its test can enter: the others need no consistency check
+        def passes(s: Scored, tests: int = len(remaining), before: Scored = current) -> bool:
+            return improvement(before, s).significant(tests)
+
+        trials = {n: bench.candidate(n, current, passes) for n in remaining}
+        tests = {n: improvement(current, s) for n, s in trials.items()}
+        passed = {n: s for n, s in trials.items() if s.consistent
+                  and tests[n].significant(len(trials))}
+        if not passed:
+            break
+        best = min(passed, key=lambda n: passed[n].gap)
+        chosen = [n for n in chosen if n not in effects.get(best).nests]
+        steps.append(_step(best, chosen, current, passed[best], tests[best].p_value))
+        chosen.append(best)
+        current = passed[best]
+    if len(chosen) > 1:
+        revised, final, notes = revise(bench, chosen, current)
+        if revised != chosen:
+            steps = _rebuilt_steps(bench, base, revised, final)
+            bench.revisions.extend(notes)
+            return revised, final, steps
+    return chosen, current, steps
+
+
+def revise(bench: Bench, chosen: list[str], current: Scored
+            ) -> tuple[list[str], Scored, list[str]]:
+    """A backward pass over a verdict of several effects, each judged with the others
+    in the model (the greedy order tested each only against the effects before it).
+
+    1. The friction form: where a chosen effect nests another or is nested in one
+       (Stribeck and Coulomb friction), the two forms are compared again with the other
+       effects in the model, by the rule of the first step: the nesting form stays (or
+       comes in) only when, searched beside the others, both runs resolve what it adds
+       (its consistency) and the nested form does not simulate HOLDOUT significantly
+       better. A static excess fitted before a position-periodic torque was in the model
+       can be that torque's low-speed share.
+    2. Elimination: an effect whose removal from the joint model (the others re-fitted,
+       their hyper-parameters kept) HOLDOUT's paired test does not reject
+       (Bonferroni over the verdict's effects) is dropped, the weakest first, until every
+       effect left is needed beside the others.
+
+    Returns the effects, the model with them, and a note per change.
+    """
+    chosen, notes = list(chosen), []
+    for name in list(chosen):
+        effect = effects.get(name)
+        rivals = [n for n in (*effect.nests, *effects.nested_in(name)) if n not in chosen]
+        if not rivals:
+            continue
+        rest = bench.score(effect.without(current.spec))
+        # both forms searched again beside the others (hyper-parameters, consistency)
+        forms = {n: bench.candidate(n, rest) for n in (name, rivals[0])}
+        wide, inner = (name, rivals[0]) if effect.nests else (rivals[0], name)
+        outer_form, inner_form = forms[wide], forms[inner]
+        keep_outer = (outer_form.spec != NO_FIT and outer_form.consistent
+                      and improvement(rest, outer_form).significant(1)
+                      and (inner_form.spec == NO_FIT
+                           or not improvement(outer_form, inner_form).significant(1)))
+        pick = wide if keep_outer else inner
+        if pick == name or forms[pick].spec == NO_FIT:
+            continue
+        others = [n for n in chosen if n != name]
+        notes.append(f"{pick} instead of {name} once {'+'.join(others)} "
+                     f"{'is' if len(others) == 1 else 'are'} in the model (the friction "
+                     f"form tested beside the other effects: gap {current.gap:.2f} -> "
+                     f"{forms[pick].gap:.2f} %)")
+        chosen[chosen.index(name)] = pick
+        current = forms[pick]
+    while len(chosen) > 1:
+        tests = {}
+        reduced = {}
+        for name in chosen:
+            reduced[name] = bench.score(effects.get(name).without(current.spec))
+            tests[name] = improvement(reduced[name], current)
+        weakest = max(chosen, key=lambda n: tests[n].p_value)
+        if tests[weakest].significant(len(chosen)):
+            break
+        t = tests[weakest]
+        notes.append(f"{weakest} left out: beside {'+'.join(n for n in chosen if n != weakest)} "
+                     f"it is not needed (gap {reduced[weakest].gap:.2f} % without it, "
+                     f"{current.gap:.2f} % with it, shrink {t.shrink:.2f}, p {t.p_value:.2g})")
+        chosen.remove(weakest)
+        current = reduced[weakest]
+    return chosen, current, notes
+
+
+def _rebuilt_steps(bench: Bench, base: Scored, chosen: list[str], final: Scored
+                   ) -> list[SelectionStep]:
+    """The steps of a revised verdict: each effect added to the ones before it, at the
+    final model's hyper-parameters (the others taken out of it)."""
+    steps, before = [], base
+    for k, name in enumerate(chosen):
+        spec = final.spec
+        for later in chosen[k + 1:]:
+            spec = effects.get(later).without(spec)
+        added = final if k == len(chosen) - 1 else bench.score(spec)
+        steps.append(_step(name, chosen[:k], before, added,
+                           improvement(before, added).p_value))
+        before = added
+    return steps
+
+
+def _step(name: str, after: list[str], before: Scored, added: Scored,
+          p_value: float) -> SelectionStep:
+    return SelectionStep(effect=name, after=list(after), gap_before_percent=before.gap,
+                         gap_percent=added.gap, shrink=1.0 - added.gap / before.gap,
+                         p_value=p_value)
+
+
+def improvement(base: Scored, cand: Scored) -> PairedTest:
+    """The paired holdout test of ``cand`` against ``base``.
+
+    A candidate that adds an effect tested on the speed alone (``speed_test_only``: a
+    backlash, whose load-acceleration regressor is built from the measured motion
+    itself) is tested on the simulated speed alone.
+    """
+    if any(e.speed_test_only and e.present(cand.spec) and not e.present(base.spec)
+           for e in effects.all_effects()):
+        test = paired_improvement(base.sse[:1], cand.sse[:1])
+    else:
+        test = paired_improvement(base.sse, cand.sse)
+    return replace(test, p_value=min(1.0, test.p_value * cand.looks))
+
+
+__all__ = ["improvement", "revise", "select"]
