@@ -54,8 +54,17 @@ SUBSAMPLES = 8
 #: with its own coefficient ``(Kt/J)·w`` it makes the timing ``w`` of the current within
 #: the period a free, linear parameter (see :meth:`Design.matrices`).
 TIMING_COLUMN = "current_step"
+#: The same change over the periods in which the current does not settle but keeps
+#: moving the same way into the next period (a drive at its supply voltage ramps the
+#: current over several periods): such a period holds a ramp between its end samples,
+#: not a step settled early in it, and its current's timing has a coefficient of its own.
+RAMP_COLUMN = "current_ramp"
+#: A change of the current counts as a ramp going on when it and the next change have
+#: the same sign and each exceeds this many standard deviations of a difference of two
+#: noisy samples (4: white noise alone passes each with probability 6e-5, both far less).
+RAMP_SIGMAS = 4.0
 #: Columns that carry the measured current (and so need an instrument).
-CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, "rip_sin", "rip_cos"})
+CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, "rip_sin", "rip_cos"})
 
 
 def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
@@ -188,9 +197,10 @@ class Design:
         sig = self.sig
         if name == "current":
             return self.current(spec, instrument)
-        if name == TIMING_COLUMN:
+        if name in (TIMING_COLUMN, RAMP_COLUMN):
             current = shifted(sig.current, spec.delay)
             step = interval_current(current, 1.0) - interval_current(current, 0.0)
+            step = step * self.ramp_mask(spec.delay, name == RAMP_COLUMN)
             return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
@@ -207,6 +217,20 @@ class Design:
         if name.startswith("rip"):
             return self.current(spec, instrument) * periodic
         return periodic
+
+    def ramp_mask(self, delay: int, ramp: bool) -> np.ndarray:
+        """1 on the periods whose current change goes on into the next period beyond the
+        noise (:data:`RAMP_SIGMAS`) when ``ramp``, on the others when not."""
+        key = ("ramp mask", delay)
+        if key not in self.cache:
+            current = shifted(self.sig.current, delay)
+            step = interval_current(current, 1.0) - interval_current(current, 0.0)
+            following = np.concatenate([step[1:], [0.0]])
+            floor = RAMP_SIGMAS * np.sqrt(2.0) * noise_sigma(self.sig.current)
+            self.cache[key] = ((np.abs(step) > floor) & (np.abs(following) > floor)
+                               & (step * following > 0)).astype(float)
+        mask = self.cache[key]
+        return np.asarray(mask if ramp else 1.0 - mask)
 
     def noise_weights(self, weight: float = 0.5) -> np.ndarray:
         """Weight of each current sample in the filtered held current of ``input_weight``
@@ -265,8 +289,9 @@ class Design:
         for name in names:
             if name == "current":
                 sources[name] = (own, ones)
-            elif name == TIMING_COLUMN:
-                sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0), ones)
+            elif name in (TIMING_COLUMN, RAMP_COLUMN):
+                sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0),
+                                 self.ramp_mask(spec.delay, name == RAMP_COLUMN))
             elif name in ("rip_sin", "rip_cos"):
                 sources[name] = (own, periodic_column(spec.ripple_N or 0, self.sig,
                                                       name == "rip_sin"))
@@ -296,11 +321,15 @@ class Design:
         current over the period is ``i[n + k] + w'·(i[n + k + 1] − i[n + k])`` on top of
         ``spec.input_weight`` with ``w'`` fitted (a drive's current loop settles within
         the period at a time of its own: a first-order loop of time constant ``τ`` gives
-        the period mean ``w = 1 − τ/Δt``, which the grid of 0, ½, 1 would miss).
+        the period mean ``w = 1 − τ/Δt``, which the grid of 0, ½, 1 would miss). Where
+        the current ramps on into the next period (:meth:`ramp_mask`), its change is the
+        :data:`RAMP_COLUMN` instead, with a ``w`` of its own.
         """
         inputs = spec.names()
         if timing:
             inputs.insert(1, TIMING_COLUMN)
+            if np.any(self.ramp_mask(spec.delay, True)):
+                inputs.insert(2, RAMP_COLUMN)
         names = (["theta"] if spec.spring else []) + ["omega"] + inputs
         motion = {"theta": self.theta, "omega": self.omega}
         X = np.column_stack([motion[n] if n in motion else self.column(spec, n) for n in names])

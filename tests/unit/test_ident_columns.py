@@ -1,4 +1,4 @@
-"""The friction columns of the identification model at a reversal (issue 19)."""
+"""The friction and current-timing columns of the identification model (issue 19)."""
 
 from __future__ import annotations
 
@@ -53,3 +53,26 @@ def test_the_velocity_within_a_period_keeps_each_reversal_where_the_angle_puts_i
     assert 15 <= np.count_nonzero(reversal) <= 20
     assert np.max(np.abs(error[reversal])) <= 0.5 / SUBSAMPLES + 1e-9
     assert np.sum(np.abs(error[~reversal])) < 0.01
+
+
+def test_a_current_that_ramps_over_several_periods_is_told_from_steps_and_noise() -> None:
+    # A drive at its supply voltage ramps its current over several periods; one that is
+    # not steps it within one. Steps of 1 A every 40 samples, every other one slowed to
+    # a ramp over 3 periods, under 10 mA of white noise: the ramp column takes the first
+    # two periods of each ramp (its change goes on the same way into the next period),
+    # and neither the steps nor the noise between them.
+    dt, n = 1e-3, 4000
+    rng = np.random.default_rng(3)
+    target = np.where((np.arange(n) // 40) % 2 == 0, 0.5, -0.5)
+    current = target.copy()
+    for start in range(40, n, 80):  # every other change ramps over 3 periods
+        current[start:start + 3] = target[start - 1] + (target[start] - target[start - 1]) * (
+            np.arange(1, 4) / 3)
+    theta = np.cumsum(np.cumsum(current)) * dt**2 * 50.0
+    run = check_columns({"time_s": np.arange(n) * dt, "position_rad": theta,
+                         "current_A": current + 0.01 * rng.standard_normal(n)},
+                        "single", "ramps")
+    design = Design.build(prepare(run), 8, 0)
+    ramp = np.flatnonzero(design.ramp_mask(0, True))
+    expected = np.array([s + k for s in range(40, n, 80) for k in (-1, 0)])
+    np.testing.assert_array_equal(ramp, expected)
