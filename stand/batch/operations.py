@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from stand.jsonable import JsonResult
 from stand.runfile import Run, RunKind
 from stand.stepid import METHODS as STEP_METHODS
 from stand.stepid.model import HOLDS as STEP_HOLDS
+
+if TYPE_CHECKING:
+    from stand.ident.qmatrix import QSums
 
 Options = Mapping[str, Any]
 
@@ -165,6 +168,9 @@ class Outcome:
         sensitive than ``seconds`` to what else the machine runs.
     sums : ndarray or None
         The Q-matrix sums ``G`` of an ``identify`` item (:func:`run_sums`), for pooling.
+    sum_samples : int
+        The samples those sums hold (seed 000's rows; the result's own ``samples`` may
+        differ: the model with effects can drop rows at the ends).
     """
 
     index: int
@@ -173,6 +179,7 @@ class Outcome:
     seconds: float
     cpu_seconds: float = 0.0
     sums: np.ndarray | None = None
+    sum_samples: int = 0
 
 
 def run_item(item: Item, op_name: str, options: dict[str, Any],
@@ -192,11 +199,13 @@ def run_item(item: Item, op_name: str, options: dict[str, Any],
     """
     start, cpu = time.perf_counter(), time.process_time()
     op = OPERATIONS[op_name]
-    sums = None
+    sums, sum_samples = None, 0
     try:
         runs = [_load(ref, op.kind, database) for ref in item.refs]
         result: dict[str, Any] | None = op.call(runs, options).to_json()
-        sums = run_sums(runs[0], result) if op.name == "identify" else None  # type: ignore[arg-type]
+        if op.name == "identify":
+            q = run_sums(runs[0], result)  # type: ignore[arg-type]
+            sums, sum_samples = q.G, int(q.samples)
         error = ""
     except StandError as exc:
         result, error = None, f"{type(exc).__name__}: {exc}"
@@ -205,11 +214,11 @@ def run_item(item: Item, op_name: str, options: dict[str, Any],
         result = None
         error = f"{type(exc).__name__}: {exc} (at {Path(where.filename).name}:{where.lineno})"
     return Outcome(item.index, result, error, time.perf_counter() - start,
-                   time.process_time() - cpu, sums)
+                   time.process_time() - cpu, sums, sum_samples)
 
 
-def run_sums(run: Run, result: Mapping[str, Any]) -> np.ndarray:
-    """The Q-matrix sums ``G`` (seed 000 eq. 10) of the run an ``identify`` result came from.
+def run_sums(run: Run, result: Mapping[str, Any]) -> QSums:
+    """The Q-matrix sums (seed 000 eq. 10) of the run an ``identify`` result came from.
 
     The one place a batch reaches into :mod:`stand.ident`: the public result carries the
     estimate, not the sums, and pooling adds sums across runs. It rebuilds the states
@@ -223,7 +232,7 @@ def run_sums(run: Run, result: Mapping[str, Any]) -> np.ndarray:
     half_width = result["half_width"] if result["method"] == "default" else None
     states = state_derivatives(run["position_rad"], current, run.dt_s, result["method"],
                                half_width)
-    return QSums.zeros(2, 1).add(states.xdot, states.x, states.inputs, run.dt_s).G
+    return QSums.zeros(2, 1).add(states.xdot, states.x, states.inputs, run.dt_s)
 
 
 def _load(ref: str, kind: RunKind, database: str | None) -> Run:

@@ -116,8 +116,7 @@ def _fleet(group: str, members: list[Outcome], field: str) -> Fleet:
     noise_se = (float(np.sqrt(np.mean(np.square(np.array(ses, dtype=float)))))
                 if ses and None not in ses else None)
     pooled = None
-    sums = [(m.sums, int(m.result["samples"])) for m in ok  # type: ignore[index]
-            if m.sums is not None]
+    sums = [(m.sums, m.sum_samples) for m in ok if m.sums is not None]
     if sums:
         pooled, note = _pooled(sums)
         notes += [note] if note else []

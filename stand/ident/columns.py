@@ -16,7 +16,8 @@ Every column is passed through the same kernel as the angle
 (:mod:`stand.ident.derivatives`), so the filtered signals obey the same equation. A
 column held over each period (the current, the period means of ``sin Nθ``) goes through
 the continuous kernel period by period (:func:`~stand.ident.derivatives.filter_held`);
-the friction columns are period means too (of ``sign θ'`` at points within the period).
+the friction columns are period means too (of ``sign θ'`` at points within the period,
+from a velocity that keeps each period's mean ``Δθ/Δt``, :meth:`Design.omega_within`).
 
 Instruments. The measured current carries sensor noise; as a regressor it makes an
 errors-in-variables problem and least squares pulls Kt/J towards zero by the share of
@@ -53,8 +54,17 @@ SUBSAMPLES = 8
 #: with its own coefficient ``(Kt/J)·w`` it makes the timing ``w`` of the current within
 #: the period a free, linear parameter (see :meth:`Design.matrices`).
 TIMING_COLUMN = "current_step"
+#: The same change over the periods in which the current does not settle but keeps
+#: moving the same way into the next period (a drive at its supply voltage ramps the
+#: current over several periods): such a period holds a ramp between its end samples,
+#: not a step settled early in it, and its current's timing has a coefficient of its own.
+RAMP_COLUMN = "current_ramp"
+#: A change of the current counts as a ramp going on when it and the next change have
+#: the same sign and each exceeds this many standard deviations of a difference of two
+#: noisy samples (4: white noise alone passes each with probability 6e-5, both far less).
+RAMP_SIGMAS = 4.0
 #: Columns that carry the measured current (and so need an instrument).
-CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, "rip_sin", "rip_cos"})
+CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, "rip_sin", "rip_cos"})
 
 
 def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
@@ -63,6 +73,41 @@ def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
         return values
     padded = np.concatenate([np.repeat(values[:1], lag), values, np.repeat(values[-1:], lag)])
     return 0.5 * (padded[:-2 * lag] + padded[2 * lag:])
+
+
+#: Points of the search for the crossing within a period (:func:`reversal_lines`).
+CROSSING_GRID = 257
+
+
+def reversal_lines(before: np.ndarray, mean: np.ndarray, after: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where in a period the shaft reverses, from the mean velocities of the period and
+    its neighbours, with a line of its own on either side of the crossing.
+
+    In units of the period, the velocity is ``a_L·(s − τ)`` before the crossing ``τ``
+    (0 ≤ τ ≤ 1) and ``a_R·(s − τ)`` after it: constant accelerations that differ by
+    twice the friction (a held torque, Coulomb friction flipping at ω = 0). The
+    neighbours' means give ``a_L = −ω̄_{n−1}/(½ + τ)`` and ``a_R = ω̄_{n+1}/(3/2 − τ)``,
+    and ``τ`` makes the period's own mean ``−a_L·τ²/2 + a_R·(1 − τ)²/2`` equal to
+    ``ω̄_n``. Without a kink this is the line through the three means.
+
+    Returns
+    -------
+    crossing, left, right : ndarray
+        ``τ`` (NaN where no crossing in the period keeps its mean), ``a_L`` and ``a_R``,
+        rad/s per period.
+    """
+    tau = np.linspace(0.0, 1.0, CROSSING_GRID)
+    b, m, a = before[:, None], mean[:, None], after[:, None]
+    f = b * tau**2 / (1 + 2 * tau) + a * (1 - tau) ** 2 / (3 - 2 * tau) - m
+    change = np.signbit(f[:, :-1]) != np.signbit(f[:, 1:])
+    first = np.argmax(change, axis=1)
+    rows = np.arange(len(f))
+    f0, f1 = f[rows, first], f[rows, first + 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing = tau[first] + (tau[1] - tau[0]) * f0 / (f0 - f1)
+    crossing = np.where(change.any(axis=1), crossing, np.nan)
+    return crossing, -before / (0.5 + crossing), after / (1.5 - crossing)
 
 
 @dataclass
@@ -120,20 +165,42 @@ class Design:
         return self.cache[key]
 
     def omega_within(self) -> np.ndarray:
-        """Velocity at ``SUBSAMPLES`` midpoints of each period, linear between the
-        samples of the run's filtered velocity, rad/s, shape (samples, SUBSAMPLES)."""
-        omega = self.sig.omega_f
-        following = np.concatenate([omega[1:], omega[-1:]])
+        """Velocity at ``SUBSAMPLES`` midpoints of each period, rad/s, shape
+        (samples, SUBSAMPLES).
+
+        The angle gives each period's mean velocity ``ω̄_n = (θ[n + 1] − θ[n])/Δt``
+        exactly (to a count); the velocity within the period keeps it. Within a period
+        the velocity is the line through its mean with the slope of the neighbouring
+        means. Where the neighbours' means have opposite signs the shaft reverses in the
+        period, and friction flips with the sign of ω: the velocity has a kink at zero, a
+        line on either side (:func:`reversal_lines`). A low-passed velocity spreads that
+        kink over several samples and moves the crossing, and the friction columns'
+        impulse with it, in proportion to the friction.
+        """
+        theta = self.sig.theta
+        mean = np.diff(theta, append=2 * theta[-1] - theta[-2]) / self.sig.dt_s
+        before = np.concatenate([mean[:1], mean[:-1]])
+        after = np.concatenate([mean[1:], mean[-1:]])
         share = (np.arange(SUBSAMPLES) + 0.5) / SUBSAMPLES
-        return np.asarray(omega[:, None] * (1 - share) + following[:, None] * share)
+        omega = mean[:, None] + 0.5 * (after - before)[:, None] * (share - 0.5)
+        turning = np.flatnonzero(before * after < 0)
+        if turning.size:
+            lines = reversal_lines(before[turning], mean[turning], after[turning])
+            crossing, left, right = (x[:, None] for x in lines)
+            kinked = np.where(share < crossing, left * (share - crossing),
+                              right * (share - crossing))
+            found = np.isfinite(crossing[:, 0])
+            omega[turning[found]] = kinked[found]
+        return np.asarray(omega)
 
     def _raw(self, spec: ModelSpec, name: str, instrument: bool) -> np.ndarray:
         sig = self.sig
         if name == "current":
             return self.current(spec, instrument)
-        if name == TIMING_COLUMN:
+        if name in (TIMING_COLUMN, RAMP_COLUMN):
             current = shifted(sig.current, spec.delay)
             step = interval_current(current, 1.0) - interval_current(current, 0.0)
+            step = step * self.ramp_mask(spec.delay, name == RAMP_COLUMN)
             return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
@@ -150,6 +217,20 @@ class Design:
         if name.startswith("rip"):
             return self.current(spec, instrument) * periodic
         return periodic
+
+    def ramp_mask(self, delay: int, ramp: bool) -> np.ndarray:
+        """1 on the periods whose current change goes on into the next period beyond the
+        noise (:data:`RAMP_SIGMAS`) when ``ramp``, on the others when not."""
+        key = ("ramp mask", delay)
+        if key not in self.cache:
+            current = shifted(self.sig.current, delay)
+            step = interval_current(current, 1.0) - interval_current(current, 0.0)
+            following = np.concatenate([step[1:], [0.0]])
+            floor = RAMP_SIGMAS * np.sqrt(2.0) * noise_sigma(self.sig.current)
+            self.cache[key] = ((np.abs(step) > floor) & (np.abs(following) > floor)
+                               & (step * following > 0)).astype(float)
+        mask = self.cache[key]
+        return np.asarray(mask if ramp else 1.0 - mask)
 
     def noise_weights(self, weight: float = 0.5) -> np.ndarray:
         """Weight of each current sample in the filtered held current of ``input_weight``
@@ -208,8 +289,9 @@ class Design:
         for name in names:
             if name == "current":
                 sources[name] = (own, ones)
-            elif name == TIMING_COLUMN:
-                sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0), ones)
+            elif name in (TIMING_COLUMN, RAMP_COLUMN):
+                sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0),
+                                 self.ramp_mask(spec.delay, name == RAMP_COLUMN))
             elif name in ("rip_sin", "rip_cos"):
                 sources[name] = (own, periodic_column(spec.ripple_N or 0, self.sig,
                                                       name == "rip_sin"))
@@ -239,11 +321,15 @@ class Design:
         current over the period is ``i[n + k] + w'·(i[n + k + 1] − i[n + k])`` on top of
         ``spec.input_weight`` with ``w'`` fitted (a drive's current loop settles within
         the period at a time of its own: a first-order loop of time constant ``τ`` gives
-        the period mean ``w = 1 − τ/Δt``, which the grid of 0, ½, 1 would miss).
+        the period mean ``w = 1 − τ/Δt``, which the grid of 0, ½, 1 would miss). Where
+        the current ramps on into the next period (:meth:`ramp_mask`), its change is the
+        :data:`RAMP_COLUMN` instead, with a ``w`` of its own.
         """
         inputs = spec.names()
         if timing:
             inputs.insert(1, TIMING_COLUMN)
+            if np.any(self.ramp_mask(spec.delay, True)):
+                inputs.insert(2, RAMP_COLUMN)
         names = (["theta"] if spec.spring else []) + ["omega"] + inputs
         motion = {"theta": self.theta, "omega": self.omega}
         X = np.column_stack([motion[n] if n in motion else self.column(spec, n) for n in names])

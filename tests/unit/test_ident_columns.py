@@ -1,0 +1,78 @@
+"""The friction and current-timing columns of the identification model (issue 19)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stand.diagnosis.signals import prepare
+from stand.ident.columns import SUBSAMPLES, Design
+from stand.runfile import check_columns
+
+#: Half period of the reversing motion, s; the crossing is a quarter into it.
+HALF_S = 0.2052
+FINE = 200
+
+
+def kinked_reversals(dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Angle (rad) at the samples of a shaft reversing every ``HALF_S`` under a held
+    torque with Coulomb friction, and the time share of ω > 0 in each sample period.
+
+    Before each crossing the shaft decelerates at 3 rad/s², after it accelerates at
+    1 rad/s² the other way (drive torque 2, friction 1 in units of J): the velocity has a
+    kink at zero, as a reversal against friction has. Integrated exactly on a grid of
+    ``FINE`` points a period."""
+    t = np.arange(int(4.0 / dt) * FINE + 1) * (dt / FINE)
+    crossing = HALF_S / 4
+    within = t % (2 * HALF_S)
+    sign = np.where(within < HALF_S, 1.0, -1.0)
+    p = within % HALF_S
+    omega = sign * np.where(p < crossing, 3.0 * (crossing - p), -(p - crossing))
+    theta = np.concatenate([[0.0], np.cumsum(0.5 * (omega[1:] + omega[:-1]) * dt / FINE)])
+    periods = (len(t) - 1) // FINE
+    share = (omega[:-1].reshape(periods, FINE) > 0).mean(axis=1)
+    return theta[::FINE][:periods], share
+
+
+def test_the_velocity_within_a_period_keeps_each_reversal_where_the_angle_puts_it() -> None:
+    # Coulomb friction's column is the period mean of sign(ω). The angle gives each
+    # period's mean velocity; a velocity that keeps those means, with a line of its own on
+    # either side of the crossing, changes sign only in the period where the angle turns
+    # and places the crossing to within the resolution of the SUBSAMPLES points (1/16 of
+    # a period). One line through the period misses the kink (0.2 of a period here, at a
+    # 3 : 1 change of slope, always the same way round); a low-passed velocity spreads it
+    # over several samples: up to 0.7 of a period, and 4 periods' worth of sign moved into
+    # the neighbouring periods.
+    dt = 2e-3
+    theta, share = kinked_reversals(dt)
+    current = np.where(np.sin(np.arange(len(theta)) * 0.3) > 0, 1.0, -1.0)
+    run = check_columns({"time_s": np.arange(len(theta)) * dt, "position_rad": theta,
+                         "current_A": current}, "single", "kinked")
+    design = Design.build(prepare(run), 8, 0)
+    error = (np.sign(design.omega_within()).mean(axis=1) - (2 * share - 1)) / 2
+    reversal = share % 1 > 0
+    assert 15 <= np.count_nonzero(reversal) <= 20
+    assert np.max(np.abs(error[reversal])) <= 0.5 / SUBSAMPLES + 1e-9
+    assert np.sum(np.abs(error[~reversal])) < 0.01
+
+
+def test_a_current_that_ramps_over_several_periods_is_told_from_steps_and_noise() -> None:
+    # A drive at its supply voltage ramps its current over several periods; one that is
+    # not steps it within one. Steps of 1 A every 40 samples, every other one slowed to
+    # a ramp over 3 periods, under 10 mA of white noise: the ramp column takes the first
+    # two periods of each ramp (its change goes on the same way into the next period),
+    # and neither the steps nor the noise between them.
+    dt, n = 1e-3, 4000
+    rng = np.random.default_rng(3)
+    target = np.where((np.arange(n) // 40) % 2 == 0, 0.5, -0.5)
+    current = target.copy()
+    for start in range(40, n, 80):  # every other change ramps over 3 periods
+        current[start:start + 3] = target[start - 1] + (target[start] - target[start - 1]) * (
+            np.arange(1, 4) / 3)
+    theta = np.cumsum(np.cumsum(current)) * dt**2 * 50.0
+    run = check_columns({"time_s": np.arange(n) * dt, "position_rad": theta,
+                         "current_A": current + 0.01 * rng.standard_normal(n)},
+                        "single", "ramps")
+    design = Design.build(prepare(run), 8, 0)
+    ramp = np.flatnonzero(design.ramp_mask(0, True))
+    expected = np.array([s + k for s in range(40, n, 80) for k in (-1, 0)])
+    np.testing.assert_array_equal(ramp, expected)
