@@ -94,6 +94,23 @@ def position_friction(p: dict[str, float], duration_s: float) -> Torque:
                                        * math.tanh(omega / eps))
 
 
+def eddy_brake(p: dict[str, float], duration_s: float) -> Torque:
+    """An eddy-current brake (a conductive disc in a magnet's field, or eddy currents in
+    the motor's own iron): ``T·2x/(1 + x²)`` with ``x = ω/ω_c``, growing with speed up to
+    its peak ``T`` at ``ω_c`` and falling beyond (the field is pushed out of the
+    conductor)."""
+    T, wc = p["T"], p["omega_c"]
+    return lambda theta, omega, i, t: T * 2 * (omega / wc) / (1 + (omega / wc) ** 2)
+
+
+def mesh_friction(p: dict[str, float], duration_s: float) -> Torque:
+    """Friction of a gear mesh that grows with the torque it carries:
+    ``μ·Kt·|i|·sign(ω)`` (a load-dependent efficiency loss, smoothed over ``eps`` rad/s),
+    not a constant friction level."""
+    mu, kt, eps = p["mu"], p["Kt"], p["eps"]
+    return lambda theta, omega, i, t: mu * kt * abs(i) * math.tanh(omega / eps)
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -103,6 +120,8 @@ OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
 HELD_OUT: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "elastic_load": elastic_load, "pump_load": pump_load,
     "position_friction": position_friction,
+    # added with issue 21's structure tests, before any result with them was seen
+    "eddy_brake": eddy_brake, "mesh_friction": mesh_friction,
 }
 #: Every outside effect by name.
 ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT}
@@ -135,6 +154,10 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
         return {"Tc": strength * torque_ref, "a": float(rng.uniform(0.3, 0.9)),
                 "ratio": float(rng.uniform(2.2, 7.8)), "phi": float(rng.uniform(0, 2 * math.pi)),
                 "eps": 0.01 * omega_ref}
+    if name == "eddy_brake":
+        return {"T": strength * torque_ref, "omega_c": _log_uniform(rng, 0.3, 3.0) * omega_ref}
+    if name == "mesh_friction":
+        return {"mu": strength, "Kt": Kt, "eps": 0.01 * omega_ref}
     raise KeyError(name)
 
 
