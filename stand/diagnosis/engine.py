@@ -44,6 +44,7 @@ from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import PairedTest, paired_improvement
+from stand.diagnosis.structure import along_travel_test, structure_test
 from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
@@ -173,7 +174,12 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                                    max_effects)
     floor = noise_floor(ho, bench.scale)
     noise_gap = noise_gap_percent(ho, bench.scale, bench.seg.horizon, base.model)
-    left = unexplained(base.gap, final.gap, noise_gap)
+    residual_final = equation_residual(final.model, ho)
+    residual_train = equation_residual(final.model, tr)
+    structure = structure_test(residual_train, tr, residual_final, ho, bench.seg.index)
+    along = along_travel_test(residual_train, tr, residual_final, ho, bench.seg.index)
+    left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
+                       along.test.p_value, named=bool(chosen))
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -196,11 +202,15 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                    "horizon_s": bench.seg.horizon * ho.dt_s,
                    "segments": int(len(bench.seg.starts))},
         noise_floor_percent=floor, message=message,
-        residual_where=locate(equation_residual(final.model, ho), ho),
+        residual_where=locate(residual_final, ho),
         model={**_nominal_dict(final.model, kt), **verdict_params},
         noise_gap_percent=noise_gap,
+        structure_p_value=structure.test.p_value,
+        position_structure_p_value=along.test.p_value,
         notes=(limits(tr, bench.tone_hz) + aliases(bench.aliased) + bench.revisions
-               + _approximation_note(base.gap, final.gap, noise_gap, left)),
+               + _approximation_note(base.gap, final.gap, noise_gap, left)
+               + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
+                                 along.test.p_value)),
         steps=steps), traces
 
 
@@ -216,6 +226,21 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
             f"{explained_percent(nominal_gap, verdict_gap):.2f} % they explain: taken as "
             "their models' approximation of the physics, not as another effect; "
             "residual_where locates it"]
+
+
+def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,
+                    p_shapes: float, p_along: float) -> list[str]:
+    """Why a remainder is ``unexplained`` by its shape rather than its size."""
+    if not left:
+        return []
+    if verdict_gap > UNEXPLAINED_FACTOR * noise_gap and (
+            beyond_noise_percent(verdict_gap, noise_gap)
+            >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap)):
+        return []
+    return [f"the gap left ({verdict_gap:.2f} %, noise {noise_gap:.2f} %) is small, but "
+            f"its equation error holds a shape no noise makes: speed, current-level and "
+            f"time shapes p = {p_shapes:.2g}, a friction level or torque along the travel "
+            f"p = {p_along:.2g} (fitted on TRAIN, tested on HOLDOUT)"]
 
 
 def _nominal_spec(on_train: Bench, spring: bool) -> ModelSpec:

@@ -151,6 +151,13 @@ class Diagnosis(JsonResult):
     noise_gap_percent : float
         Gap that noise alone gives (quantization and current noise through the free
         run), %; a gap above ``UNEXPLAINED_FACTOR`` times it is beyond noise.
+    structure_p_value : float or None
+        p-value of the test for structure beyond noise in what the verdict's effects
+        leave (:func:`stand.diagnosis.structure.structure_test`): shapes no vocabulary
+        effect makes, fitted on TRAIN, predicting HOLDOUT's equation error.
+    position_structure_p_value : float or None
+        The same test with the position shapes alone (a dry friction whose level changes
+        along the travel).
     """
 
     gap_percent: float
@@ -169,6 +176,8 @@ class Diagnosis(JsonResult):
     residual_where: Where | None = None
     model: dict[str, object] = field(default_factory=dict)
     noise_gap_percent: float | None = None
+    structure_p_value: float | None = None
+    position_structure_p_value: float | None = None
 
 
 @dataclass(frozen=True)

@@ -304,6 +304,8 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "index": index, "truth": case.truth, "verdict": result.verdict,
         "top1": named[0] in case.truth, "exact": sorted(named) == sorted(case.truth),
         "unexplained": UNEXPLAINED in predicted, "noise_gap_percent": result.noise_gap_percent,
+        "structure_p_value": result.structure_p_value,
+        "position_structure_p_value": result.position_structure_p_value,
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
         "noise_floor_percent": result.noise_floor_percent,
         "true_shrink": true_shrink,
@@ -329,7 +331,10 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
     if row["verdict"] == "error":
         return row
     named = [p for p in row["verdict"].split("+") if p not in (UNEXPLAINED, "none")]
-    left = unexplained(row["gap_percent"], row["verdict_gap_percent"], row["noise_gap_percent"])
+    p_shapes, p_along = (1.0 if row.get(key) is None else row[key]
+                         for key in ("structure_p_value", "position_structure_p_value"))
+    left = unexplained(row["gap_percent"], row["verdict_gap_percent"], row["noise_gap_percent"],
+                       p_shapes, p_along, named=bool(named))
     words = named + ([UNEXPLAINED] if left else [])
     verdict = "+".join(words) if words else "none"
     shown = [p for p in verdict.split("+") if p != UNEXPLAINED] or [verdict]

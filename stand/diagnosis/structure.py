@@ -1,0 +1,216 @@
+"""Structure a model leaves that no noise makes: a held-out test of the equation error.
+
+A gap within the noise gap does not prove that nothing beyond noise is there: when the
+nominal model is re-identified, ``Kt/J`` and ``D/J`` absorb the linear part of a fan
+drag (``ω|ω|``) or of a saturating torque constant, and what remains in the simulated
+speed is small. What remains in the equation error (the acceleration the model misses)
+has a shape, though, and noise has none that repeats from run to run.
+
+The test: shapes that no vocabulary effect produces and the physics of a stand
+plausibly does (torque growing faster than the speed, ``ω|ω|`` and ``ω³``; a torque
+constant that changes with the current level, ``i|i|`` and ``i³``, or over the run,
+``i·t``) are fitted on TRAIN to the equation error the model leaves there,
+beside nuisance columns that take up what the sampled current itself leaves (a
+constant, ``i``, ``ω``, ``di/dt``, the jerk). Their fit is then applied to HOLDOUT
+unchanged and tested, segment by segment, against the nuisance columns alone with the
+diagnosis' paired test (:func:`stand.diagnosis.significance.paired_improvement`).
+Noise fitted on TRAIN does not predict HOLDOUT's noise, so under the null the shapes do
+not improve HOLDOUT; an effect present in both runs does.
+
+Nothing here is tuned to benchmark cases: the shapes are physics, the threshold is the
+diagnosis' own family-wise level (:data:`stand.diagnosis.significance.FAMILY_ALPHA`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stand.diagnosis.signals import Signals
+from stand.diagnosis.significance import FAMILY_ALPHA, PairedTest, paired_improvement
+from stand.errors import InputError
+
+#: The shapes tested, by name (see the module docstring). Position enters through
+#: :func:`along_travel_test` instead: a polynomial in the position over TRAIN's travel
+#: extrapolates wildly on a HOLDOUT that goes further.
+SHAPES: tuple[str, ...] = ("omega_abs_omega", "omega_cubed", "i_abs_i", "i_cubed", "i_time")
+#: Columns fitted beside them and kept in the null model.
+NUISANCE: tuple[str, ...] = ("constant", "current", "omega", "current_rate", "jerk")
+#: Beside those, for the test along the travel: a level drifting over the run (on a run
+#: that turns one way the position grows with time, and a slow order of the position
+#: would stand for any drift).
+TRAVEL_NUISANCE: tuple[str, ...] = (*NUISANCE, "time", "time_squared")
+
+
+@dataclass(frozen=True)
+class StructureTest:
+    """Result of :func:`structure_test`.
+
+    Attributes
+    ----------
+    test : PairedTest
+        The shapes fitted on TRAIN against the nuisance columns alone, on HOLDOUT's
+        segments (equation error, rad/s²).
+    significant : bool
+        ``test.p_value`` below :data:`FAMILY_ALPHA`: the model leaves structure beyond
+        noise.
+    """
+
+    test: PairedTest
+    significant: bool
+
+
+@dataclass(frozen=True)
+class _Scales:
+    """TRAIN's scales of the shapes' inputs, applied to both runs alike."""
+
+    omega: float
+    current: float
+
+
+def _scales(sig: Signals) -> _Scales:
+    omega = float(np.sqrt(np.mean(sig.omega_f**2))) or 1.0
+    current = float(np.sqrt(np.mean(sig.current**2))) or 1.0
+    return _Scales(omega, current)
+
+
+def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray:
+    """The named shape or nuisance columns on ``sig``, in TRAIN's scales (samples × names)."""
+    w = sig.omega_f / scales.omega
+    i = sig.filt(sig.current) / scales.current
+    tau = np.linspace(-0.5, 0.5, len(sig))
+    made = {
+        "omega_abs_omega": lambda: w * np.abs(w), "omega_cubed": lambda: w**3,
+        "time": lambda: tau, "time_squared": lambda: tau * tau - 1 / 12,
+        "i_abs_i": lambda: i * np.abs(i), "i_cubed": lambda: i**3, "i_time": lambda: i * tau,
+        "constant": lambda: np.ones(len(sig)), "current": lambda: i, "omega": lambda: w,
+        "current_rate": lambda: np.gradient(i, sig.dt_s) * sig.dt_s,
+        "jerk": lambda: np.gradient(sig.accel_f, sig.dt_s),
+    }
+    return np.column_stack([made[name]() for name in names])
+
+
+def _predictor(x_train: np.ndarray, e_train: np.ndarray) -> np.ndarray:
+    scale = np.linalg.norm(x_train, axis=0)
+    scale[scale == 0] = 1.0
+    coef = np.linalg.lstsq(x_train / scale, e_train, rcond=None)[0]
+    return np.asarray(coef / scale)
+
+
+def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout: np.ndarray,
+                   holdout: Signals, index: np.ndarray,
+                   shapes: tuple[str, ...] = SHAPES) -> StructureTest:
+    """Whether the equation error a model leaves holds structure beyond noise.
+
+    Parameters
+    ----------
+    residual_train, residual_holdout : ndarray
+        The model's equation error on TRAIN and on HOLDOUT, rad/s², full length
+        (:func:`stand.diagnosis.model.equation_residual`).
+    train, holdout : Signals
+        The two runs.
+    index : ndarray
+        HOLDOUT's segments (segments × samples), as the diagnosis scores them.
+    shapes : tuple of str
+        The shapes tested (:data:`SHAPES` or a part of them).
+
+    Returns
+    -------
+    StructureTest
+    """
+    scales = _scales(train)
+    usable = np.unique(index.ravel())
+    unknown = sorted(set(shapes) - set(SHAPES))
+    if unknown or not shapes:
+        raise InputError(f"shapes must be a non-empty subset of {SHAPES}, got {shapes}")
+    both = NUISANCE + tuple(shapes)
+    x_tr = columns(train, scales, both)
+    x_ho = columns(holdout, scales, both)
+    edge = slice(int(usable[0]), len(train) - int(usable[0]))
+    n_nuis = len(NUISANCE)
+    null = _predictor(x_tr[edge, :n_nuis], residual_train[edge])
+    full = _predictor(x_tr[edge], residual_train[edge])
+    base = residual_holdout - x_ho[:, :n_nuis] @ null
+    cand = residual_holdout - x_ho @ full
+    test = paired_improvement(np.sum(base[index] ** 2, axis=1),
+                              np.sum(cand[index] ** 2, axis=1))
+    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
+
+
+#: Finest order searched along the travel, as a share of one cycle over TRAIN's travel
+#: (a quarter of the travel's resolution).
+ORDER_STEP_OF_TRAVEL = 0.25
+#: Orders searched along the travel lie below this, cycles per motor revolution: a level
+#: that changes behind a reducer or along a screw, slower than one cycle a revolution
+#: (whole orders are cogging's and torque ripple's).
+MAX_TRAVEL_ORDER = 0.95
+#: Most orders searched.
+MAX_TRAVEL_ORDERS = 400
+
+
+def _travel_orders(sig: Signals) -> np.ndarray:
+    """Orders (cycles per revolution) searched on TRAIN: from one cycle over its travel
+    up to :data:`MAX_TRAVEL_ORDER`, in steps of a quarter cycle over the travel."""
+    revolutions = float(np.ptp(sig.theta_f)) / (2 * np.pi)
+    if revolutions <= 0:
+        return np.array([])
+    step = ORDER_STEP_OF_TRAVEL / revolutions
+    orders = np.arange(1.0 / revolutions, MAX_TRAVEL_ORDER, step)
+    if orders.size > MAX_TRAVEL_ORDERS:
+        orders = np.linspace(orders[0], orders[-1], MAX_TRAVEL_ORDERS)
+    return orders
+
+
+def _periodic(sig: Signals, order: float) -> np.ndarray:
+    """A friction level and a torque periodic along the travel at ``order`` cycles per
+    revolution: ``sign(ω)·sin``, ``sign(ω)·cos``, ``sin``, ``cos`` of ``order·θ``."""
+    angle = order * sig.theta_f
+    sign = np.sign(sig.omega_f)
+    return np.column_stack([sign * np.sin(angle), sign * np.cos(angle), np.sin(angle),
+                            np.cos(angle)])
+
+
+def along_travel_test(residual_train: np.ndarray, train: Signals,
+                      residual_holdout: np.ndarray, holdout: Signals,
+                      index: np.ndarray) -> StructureTest:
+    """Whether what a model leaves varies along the travel: a dry friction level or a
+    torque periodic in position at an order below one cycle a revolution (an eccentric
+    preload or mass behind a reducer, a tight spot of a screw), which no vocabulary
+    effect makes.
+
+    The nuisance columns are :data:`TRAVEL_NUISANCE` (a drift over time is not a
+    level along the travel). The order is picked on TRAIN alone (the one whose four columns, beside the
+    nuisance columns, take most of TRAIN's equation error), so the test on HOLDOUT is a
+    single one at the diagnosis' level. Arguments as :func:`structure_test`.
+    """
+    scales = _scales(train)
+    usable = np.unique(index.ravel())
+    edge = slice(int(usable[0]), len(train) - int(usable[0]))
+    n_tr = columns(train, scales, TRAVEL_NUISANCE)
+    n_ho = columns(holdout, scales, TRAVEL_NUISANCE)
+    null = _predictor(n_tr[edge], residual_train[edge])
+    left = residual_train[edge] - n_tr[edge] @ null
+    q, _ = np.linalg.qr(n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300))
+    best, best_order = -1.0, None
+    for order in _travel_orders(train):
+        x = _periodic(train, float(order))[edge]
+        x = x - q @ (q.T @ x)
+        taken = float(np.sum(np.linalg.lstsq(x, left, rcond=None)[0] @ x.T * left))
+        if taken > best:
+            best, best_order = taken, float(order)
+    base = residual_holdout - n_ho @ null
+    if best_order is None:
+        return StructureTest(test=paired_improvement(np.sum(base[index] ** 2, axis=1),
+                                                     np.sum(base[index] ** 2, axis=1)),
+                             significant=False)
+    full = _predictor(np.column_stack([n_tr, _periodic(train, best_order)])[edge],
+                      residual_train[edge])
+    cand = residual_holdout - np.column_stack([n_ho, _periodic(holdout, best_order)]) @ full
+    test = paired_improvement(np.sum(base[index] ** 2, axis=1),
+                              np.sum(cand[index] ** 2, axis=1))
+    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
+
+
+__all__ = ["MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES", "TRAVEL_NUISANCE", "StructureTest",
+           "along_travel_test", "columns", "structure_test"]
