@@ -4,17 +4,16 @@
 heartbeat, SYNC counter and cycle period, maps the PDOs over SDO, starts the nodes and
 brings each drive to OPERATION ENABLED. :meth:`Master.run` then sends, every period, the
 RPDOs (controlword + target) and a SYNC, and collects the TPDOs in a
-:class:`~bus.sampler.Sampler`; it supervises heartbeats and EMCY all along and quick-stops
-every drive at once when one fails.
+:class:`~bus.sampler.Sampler` (the windows are :class:`~bus.run_loop.RunLoop`'s); it
+supervises heartbeats and EMCY all along and quick-stops every drive at once when one fails.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -35,18 +34,17 @@ from bus.cia301 import (
 )
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
 from bus.heartbeat import HEARTBEAT_CONSUMER_FACTOR, Supervisor
-from bus.sampler import MissingPdos, Sampler, Samples
+from bus.run_loop import ChunkCallback, ProgressCallback, RunLoop
+from bus.sampler import Samples
 from bus.sync import (
     SYNC_COUNTER_OVERFLOW,
     SYNC_WINDOW_FRACTION,
-    KernelSync,
-    RealtimeClock,
     SyncCounter,
     SyncWatch,
     check_time_mode,
 )
 from bus.trace import MasterNetwork, Trace
-from stand.errors import BusError, BusTimeout, InputError, RunAborted, StandError, StorageError
+from stand.errors import BusError, BusTimeout, InputError, StandError
 
 log = logging.getLogger(__name__)
 
@@ -58,22 +56,14 @@ BOOT_TIMEOUT_S = 2.0
 #: lockstep cannot tell a late TPDO from the next one, so a window must never close early
 #: (a one-CPU User-Mode Linux guest on a loaded host stalls a reader for over 0.5 s).
 PDO_TIMEOUT_S = 2.0
-#: Longest single wait, so heartbeats and stop requests are checked while waiting, s.
-POLL_S = 0.01
 #: Stand time the drives spend in quick stop after a run before they are disabled, s.
 STOP_RAMP_S = 0.1
-#: A run aborts when a drive's TPDOs are missing for this many SYNCs in a row (lockstep:
-#: each window waited ``pdo_timeout_s``; real time: at least ``pdo_timeout_s`` of SYNCs).
-MISSING_PDO_SYNCS = 3
 SYNC_PRODUCERS = ("auto", "kernel", "python")
 #: Longest wait for the bus to hand back the last SYNC of the stop cycles, s.
 ECHO_TIMEOUT_S = 0.5
 #: Interfaces that hand the sender its own frames back with their bus stamp when asked
 #: (``receive_own_messages``); the master takes each SYNC's time on the bus from the echo.
 ECHO_INTERFACES = ("socketcan", "virtual")
-
-ChunkCallback = Callable[[Samples, int, int], None]
-ProgressCallback = Callable[[int, int], None]
 
 
 class Master:
@@ -129,7 +119,7 @@ class Master:
         self._counters: dict[int, dict[str, int]] = {}
         self._quick_stop = threading.Event()
         #: One counter for every SYNC the master sends (0x1019 is set on the drives).
-        self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
+        self.sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self._window_written_us = 0
         self._sync_watch: SyncWatch | None = None
         #: The thread of the run going on, and set once its stop SYNCs went out.
@@ -171,7 +161,7 @@ class Master:
         self._forget_drives()
         self.period_s = period_s
         self._quick_stop.clear()
-        self._sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
+        self.sync_counter = SyncCounter(SYNC_COUNTER_OVERFLOW)
         self.drives = [Drive(self.network, d, self.sdo_timeout_s) for d in drives]
         for drive in self.drives:
             self.supervisor.watch(drive.id)
@@ -223,7 +213,7 @@ class Master:
     def heartbeat_age_s(self, node_id: int) -> float | None:
         return self.supervisor.age_s(node_id)
 
-    def _check_nodes(self) -> BusError | None:
+    def check_nodes(self) -> BusError | None:
         """Heartbeats, EMCY, NMT states and (during a run) foreign SYNCs of the drives."""
         error = self.supervisor.check([d.id for d in self.drives], self.heartbeat_period_s)
         watch = self._sync_watch
@@ -260,7 +250,7 @@ class Master:
     def _sync_cycles(self, cycles: int) -> None:
         """``cycles`` SYNCs, each after the drives' RPDOs; where the bus hands the SYNCs back,
         return once the last came back (so a trace being written holds it)."""
-        counter = self._sync_counter
+        counter = self.sync_counter
         last = threading.Event()
         data = b""
 
@@ -287,6 +277,11 @@ class Master:
                 self.network.unsubscribe(SYNC_COB_ID, on_sync)
 
     # -- the run ---------------------------------------------------------------------------
+    @property
+    def quick_stop_requested(self) -> bool:
+        """A quick stop was asked (:meth:`quick_stop_all`) since the drives were set up."""
+        return self._quick_stop.is_set()
+
     def run(self, targets: np.ndarray, *, time_mode: str = "lockstep",
             on_chunk: ChunkCallback | None = None, chunk_samples: int = 1000,
             stop: threading.Event | None = None, progress: ProgressCallback | None = None,
@@ -296,10 +291,11 @@ class Master:
         The sample of window k is measured at SYNC k, before target k acts (as in
         :func:`stand.physics.simulate.simulate_motor`). The run is supervised: a heartbeat
         loss, an EMCY, a drive leaving OPERATIONAL, TPDOs of a drive missing for
-        :data:`MISSING_PDO_SYNCS` SYNCs in a row, or a SYNC another producer sent quick-stops
-        every drive and ends the run early; so do ``stop`` and Ctrl-C. Either way the samples
-        so far are returned, with ``Samples.aborted`` saying why (and ``Samples.error`` the
-        error), and the trace ends with the quick-stop frames.
+        :data:`~bus.run_loop.MISSING_PDO_SYNCS` SYNCs in a row, or a SYNC another producer
+        sent quick-stops every drive and ends the run early; so do ``stop`` and Ctrl-C.
+        Either way the samples so far are returned, with ``Samples.aborted`` saying why (and
+        ``Samples.error`` the error), and the trace ends with the quick-stop frames. The
+        windows themselves are :class:`~bus.run_loop.RunLoop`'s.
         """
         check_time_mode(time_mode)
         targets = np.atleast_2d(np.asarray(targets, dtype=float))
@@ -308,114 +304,24 @@ class Master:
         if not self.drives or any(d.rpdo is None for d in self.drives):
             raise InputError("call setup() before run()")
         self._set_sync_window(time_mode)  # in case setup() was told another time mode
-        n = targets.shape[1]
-        tpdos = {cob: (dn, p, layout) for dn, d in enumerate(self.drives)
-                 for p, (cob, layout) in enumerate(d.tpdos)}
-        window_s = SYNC_WINDOW_FRACTION * self.period_s if time_mode == "realtime" else 0.0
-        sampler = Sampler(tpdos, [d.id for d in self.drives], [d.config.scaling for d in self.drives],
-                          n, self.period_s, window_s)
+        loop = RunLoop(self, targets, time_mode)
         trace = Trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ()) if trace_path else None
         if trace is not None:
             assert self.network.notifier is not None
             self.network.notifier.add_listener(trace)
             self.network.trace = trace
-        for cob in tpdos:
-            self.network.subscribe(cob, sampler.on_tpdo)
-        echo = self.sync_echo and time_mode == "realtime"
-
-        def on_sync_echo(can_id: int, data: bytearray, timestamp: float) -> None:
-            sampler.sent(timestamp, data[0] if data else 0)
-
-        if echo:
-            self.network.subscribe(SYNC_COB_ID, on_sync_echo)
-        counter = self._sync_counter
-        kernel_period_s = self.period_s if self.kernel_sync and time_mode == "realtime" else None
-        watch = self._sync_watch = SyncWatch(self.sync_echo, counter.upcoming(), counter.overflow,
-                                             kernel_period_s)
-        self.network.subscribe(SYNC_COB_ID, watch.on_sync)
+        self._sync_watch = loop.watch
         self.supervisor.expect_operational([d.id for d in self.drives])
-        frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
-                   for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(self.drives)
-                  if d.rpdo is not None]
         self._run_thread, self._stop_done = threading.get_ident(), threading.Event()
         self.time_mode, self.running, self.quick_stop_wall_s = time_mode, True, None
-        realtime = time_mode == "realtime"
-        kernel = (KernelSync(self.network.bus, self.period_s, counter)
-                  if realtime and self.kernel_sync and self.network.bus is not None else None)
-        clock = RealtimeClock(self.period_s, window_s) if realtime and kernel is None else None
-        if kernel is not None:
-            self.network.subscribe(SYNC_COB_ID, kernel.on_sync)
-        missing = MissingPdos([d.id for d in self.drives], MISSING_PDO_SYNCS if not realtime else
-                              max(MISSING_PDO_SYNCS, math.ceil(self.pdo_timeout_s / self.period_s)))
-        send = self.network.send_message
-        targets_sent = np.full(n, np.nan)  # time.time() once each window's RPDOs were sent
         error: StandError | None = None
-        done = 0
         try:
             try:
-                for k in range(n):
-                    self.window = k
-                    error = self._check_nodes()
-                    if error is None and trace is not None and trace.error is not None:
-                        error = StorageError(f"{trace.error}; every drive was quick-stopped")
-                    if error is not None or self._quick_stop.is_set() or (stop is not None and stop.is_set()):
-                        break
-                    if kernel is not None:
-                        wall = kernel.before_window(k, sampler.complete, window_s, self.pdo_timeout_s)
-                        if wall is None:
-                            error = BusTimeout(f"SYNC {k - 1} of the kernel's broadcast manager not "
-                                               f"heard within {self.pdo_timeout_s} s; every drive was "
-                                               "quick-stopped")
-                            break
-                    else:
-                        wall = clock.wait() if clock is not None else time.monotonic()
-                    if realtime and k > 0:  # a period after SYNC k-1: its answers are in
-                        error = missing.check(k - 1, sampler.missing(k - 1))
-                        if error is not None:
-                            break
-                    for per_drive in frames:
-                        send(*per_drive[k])
-                    targets_sent[k] = time.time()
-                    value, data = counter.next()
-                    sampler.open(k, wall, value)
-                    watch.sent()
-                    if kernel is None:
-                        send(SYNC_COB_ID, data)
-                        if not echo:
-                            sampler.sent(time.time())
-                    elif k == 0:
-                        kernel.start()  # from now on the kernel sends a SYNC every period
-                    done = k + 1
-                    if not realtime:
-                        error = self._await_window(sampler, stop)
-                        if error is None:
-                            error = missing.check(k, [] if sampler.complete.is_set()
-                                                  else sampler.missing(k))
-                        if error is not None:
-                            break
-                    if on_chunk is not None and done % chunk_samples == 0:
-                        on_chunk(sampler.result(done), done - chunk_samples, done)
-                    if progress is not None:
-                        progress(done, n)
-                if realtime and error is None:  # the TPDOs of the last window
-                    if kernel is not None:
-                        kernel.wait(done, self.pdo_timeout_s)
-                    sampler.complete.wait(self.pdo_timeout_s)
-            except KeyboardInterrupt:
-                error = RunAborted("interrupted (Ctrl-C): drives quick-stopped")
+                error = loop.cycle(on_chunk, chunk_samples, stop, progress, trace)
             finally:
-                if kernel is not None:
-                    kernel.stop()
-                    self.network.unsubscribe(SYNC_COB_ID, kernel.on_sync)
-                sampler.close()
                 self.running = False
                 self.supervisor.release()
                 self._sync_watch = None
-                for cob in tpdos:
-                    self.network.unsubscribe(cob, sampler.on_tpdo)
-                self.network.unsubscribe(SYNC_COB_ID, watch.on_sync)
-                if echo:
-                    self.network.unsubscribe(SYNC_COB_ID, on_sync_echo)
             # The quick stop goes into the trace: it ends with the stop frames.
             aborted: str | None = None
             if error is not None:
@@ -434,37 +340,13 @@ class Master:
                 assert self.network.notifier is not None
                 self.network.notifier.remove_listener(trace)
                 trace.stop()
-        samples = sampler.result(done, aborted)
-        samples.meta["error"] = error
-        samples.meta["foreign_syncs"] = watch.foreign
-        if kernel is not None:
-            # The kernel's SYNC does not wait for the master: RPDOs sent after their SYNC
-            # act one SYNC late, and the run is not the commanded one from there on.
-            with np.errstate(invalid="ignore"):
-                late = np.flatnonzero(targets_sent[:done] > samples.sync_stamp_s)
-            samples.late_targets = int(late.size)
-        self.late_target_windows = late.tolist() if kernel is not None else []
-        samples.meta["trace_frames"] = trace.frames if trace is not None else 0
-        if trace is not None and trace.error is not None:  # also a failure flushing at the end
-            samples.meta["trace_error"] = str(trace.error)
+        samples = loop.samples(aborted, error, trace)
+        self.late_target_windows = loop.late_target_windows
         for d, ds in zip(self.drives, samples.drives, strict=True):
             self._counters[d.id] = {"lost": ds.lost, "duplicates": ds.duplicates, "late": ds.late}
-        if on_chunk is not None and done % chunk_samples:
-            on_chunk(samples, done - done % chunk_samples, done)
+        if on_chunk is not None and loop.done % chunk_samples:
+            on_chunk(samples, loop.done - loop.done % chunk_samples, loop.done)
         return samples
-
-    def _await_window(self, sampler: Sampler, stop: threading.Event | None) -> BusError | None:
-        """Wait for the open window's TPDOs, supervising; return an error or None (all came,
-        a stop was asked, or the PDO timeout passed: the caller counts what is missing)."""
-        deadline = time.monotonic() + self.pdo_timeout_s
-        while not sampler.complete.wait(min(POLL_S, max(0.0, deadline - time.monotonic()))):
-            error = self._check_nodes()
-            if error is not None:
-                return error
-            if time.monotonic() >= deadline or self._quick_stop.is_set() or (
-                    stop is not None and stop.is_set()):
-                return None
-        return None
 
     def stop_drives(self) -> None:
         """End of a run: quick stop, let the drives brake, disable them, NMT pre-operational."""
@@ -501,7 +383,3 @@ class Master:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-
-def _raw_targets(drive: Drive, values: np.ndarray) -> list[int]:
-    scaling, mode = drive.config.scaling, drive.config.mode
-    return [scaling.target_raw(mode, float(v)) for v in values]

@@ -18,7 +18,8 @@ import numpy as np
 from bus.adapters import BusConfig
 from bus.drive import DriveConfig
 from bus.eds import Scaling
-from bus.master import ChunkCallback, Master, ProgressCallback
+from bus.master import Master
+from bus.run_loop import ChunkCallback, ProgressCallback
 from bus.sampler import Samples
 from bus.simstand import SimStand
 from stand.bus_interface import DriveSetup
