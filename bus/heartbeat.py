@@ -84,6 +84,8 @@ class Supervisor:
         #: The EMCY code each node's fault is latched on (cleared by an error reset).
         self.latched: dict[int, int] = {}
         self.booted: dict[int, threading.Event] = {}
+        #: When each node was told its producer heartbeat time: (monotonic, bus stamp).
+        self._producing_since: dict[int, tuple[float, float]] = {}
         #: While a run goes on: its drives, and the newest bus stamp when it began.
         self._operational: tuple[frozenset[int], float] | None = None
         self._foreign_nmt: tuple[int, int] | None = None  # (command, target) first seen
@@ -92,10 +94,16 @@ class Supervisor:
         """Start watching ``node_id`` afresh (before resetting it)."""
         self.booted[node_id] = threading.Event()
         self.heartbeats.pop(node_id, None)
+        self._producing_since.pop(node_id, None)
         self.emcy[node_id] = []
         self.latched.pop(node_id, None)
         self.network.subscribe(HEARTBEAT_BASE + node_id, self._on_heartbeat)
         self.network.subscribe(EMCY_BASE + node_id, self._on_emcy)
+
+    def producing(self, node_id: int) -> None:
+        """``node_id`` was just told its producer heartbeat time (0x1017): its first beat is
+        due a period from now, so its silence counts from now, not from its boot-up."""
+        self._producing_since[node_id] = (time.monotonic(), self.clock.newest)
 
     def forget(self, node_id: int) -> None:
         for cob_id, callback in ((HEARTBEAT_BASE + node_id, self._on_heartbeat),
@@ -164,6 +172,9 @@ class Supervisor:
             if beat is None:
                 continue
             received, _, stamp = beat
+            since = self._producing_since.get(node_id)
+            if since is not None:  # the boot-up came before the drive was told to beat
+                received, stamp = max(received, since[0]), max(stamp, since[1])
             bus_age, wall_age = newest - stamp, now - received
             if bus_age > limit or (confirmed and wall_age > SILENT_BUS_FACTOR * limit):
                 return HeartbeatLost(f"node {node_id}: no heartbeat for {max(bus_age, wall_age):.3f} s "

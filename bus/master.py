@@ -176,6 +176,7 @@ class Master:
             drive.check_device()
         for n, drive in enumerate(self.drives):
             drive.write(PRODUCER_HEARTBEAT_TIME, 0, max(1, int(round(self.heartbeat_period_s * 1000))))
+            self.supervisor.producing(drive.id)
             if drive.has(SYNCHRONOUS_COUNTER_OVERFLOW):
                 drive.write(SYNCHRONOUS_COUNTER_OVERFLOW, 0, SYNC_COUNTER_OVERFLOW)
             if drive.has(COMMUNICATION_CYCLE_PERIOD):
