@@ -24,9 +24,12 @@ MODE_NONE = 0
 MODE_CSV = 9
 MODE_CST = 10
 MODE_VOLTAGE = -1
+#: Target objects of cyclic synchronous velocity and torque mode.
+TARGET_VELOCITY = 0x60FF
+TARGET_TORQUE = 0x6071
 #: Stand drive mode to CiA 402 mode of operation and its target object.
 MODES = {"speed": MODE_CSV, "current": MODE_CST, "voltage": MODE_VOLTAGE}
-TARGET_OBJECT = {"speed": (0x60FF, "i", 32), "current": (0x6071, "h", 16),
+TARGET_OBJECT = {"speed": (TARGET_VELOCITY, "i", 32), "current": (TARGET_TORQUE, "h", 16),
                  "voltage": (0x2000, "h", 16)}
 
 # Object indices used by the stand.

@@ -62,13 +62,16 @@ class RunLoop:
                       for p, (cob, layout) in enumerate(d.tpdos)}
         self.window_s = SYNC_WINDOW_FRACTION * master.period_s if self.realtime else 0.0
         self.sampler = Sampler(self.tpdos, [d.id for d in drives], [d.config.scaling for d in drives],
-                               self.n, master.period_s, self.window_s)
+                               self.n, master.period_s, self.window_s,
+                               [cia402.TARGET_OBJECT[d.config.mode][0] for d in drives])
         self.echo = master.sync_echo and self.realtime
         counter = master.sync_counter
         kernel_period_s = master.period_s if master.kernel_sync and self.realtime else None
         self.watch = SyncWatch(master.sync_echo, counter.upcoming(), counter.overflow, kernel_period_s)
+        #: Each drive's raw targets, and the RPDO frame of each window.
+        self.raw_targets = [_raw_targets(d, targets[dn]) for dn, d in enumerate(drives)]
         self.frames = [[(d.rpdo_cob_id, d.rpdo.pack([cia402.CW_ENABLE_OPERATION, raw]))
-                        for raw in _raw_targets(d, targets[dn])] for dn, d in enumerate(drives)
+                        for raw in self.raw_targets[dn]] for dn, d in enumerate(drives)
                        if d.rpdo is not None]
         bus = master.network.bus
         self.kernel = (KernelSync(bus, master.period_s, counter)
@@ -144,8 +147,9 @@ class RunLoop:
                     error = self.missing.check(k - 1, sampler.missing(k - 1))
                     if error is not None:
                         break
-                for per_drive in self.frames:
+                for dn, per_drive in enumerate(self.frames):
                     send(*per_drive[k])
+                    sampler.command(dn, k, self.raw_targets[dn][k])
                 self.targets_sent[k] = time.time()
                 value, data = counter.next()
                 sampler.open(k, wall, value)

@@ -8,6 +8,10 @@ sample is dropped as well (counted late); a TPDO that arrives while no window is
 (after the run's last window closed) or that is stamped before the SYNC of the open window
 was sent (it answers an earlier SYNC; bus stamps, as python-can gives them) is counted as
 late. Raw values are converted to SI units with each drive's :class:`~bus.eds.Scaling`.
+
+A window also keeps the target each drive was commanded for it (:meth:`Sampler.command`),
+where the target is one a run file has a column for (:data:`TARGET_FIELDS`): the master
+records what it sends, the trace reader what the RPDOs before the SYNC carried.
 """
 
 from __future__ import annotations
@@ -28,6 +32,9 @@ from stand.errors import BusTimeout
 FIELDS = {cia402.POSITION_ACTUAL: "position_rad", cia402.CURRENT_ACTUAL: "current_A",
           cia402.VELOCITY_ACTUAL: "velocity_rad_s", cia402.VOLTAGE_ACTUAL: "voltage_V",
           cia402.STATUSWORD: "statusword"}
+#: RPDO target objects whose value a window keeps, and the field each fills: the target
+#: velocity of cyclic synchronous velocity mode, held from its SYNC to the next.
+TARGET_FIELDS = {cia402.TARGET_VELOCITY: "speed_target_rad_s"}
 INT32_SPAN = 1 << 32
 #: Frame stamps within this much of ``time.time()`` share its epoch (interfaces whose
 #: stamps count from elsewhere are not compared), s.
@@ -126,11 +133,14 @@ class Sampler:
         SYNC period, s.
     window_s : float
         Synchronous window length, s: a TPDO stamped later after its SYNC is late (0: none).
+    targets : sequence of int or None
+        Each drive's RPDO target object (0x60FF, 0x6071, ...), or None; the windows keep
+        the commanded value of those in :data:`TARGET_FIELDS`.
     """
 
     def __init__(self, tpdos: dict[int, tuple[int, int, Layout]], node_ids: Sequence[int],
                  scalings: Sequence[Scaling], samples: int, period_s: float,
-                 window_s: float = 0.0) -> None:
+                 window_s: float = 0.0, targets: Sequence[int | None] = ()) -> None:
         self.window_s = window_s
         self.tpdos = tpdos
         self.scalings = list(scalings)
@@ -141,6 +151,11 @@ class Sampler:
         for n in range(len(node_ids)):
             names = {FIELDS[i] for c in tpdos.values() if c[0] == n for i in c[2].indices if i in FIELDS}
             self.raw.append({name: np.full(samples, np.nan) for name in sorted(names)})
+        #: Drive number → the field its commanded target fills.
+        self.target_fields = {n: TARGET_FIELDS[index] for n, index in enumerate(targets)
+                              if index in TARGET_FIELDS}
+        for n, name in self.target_fields.items():
+            self.raw[n][name] = np.full(samples, np.nan)
         self.received = [np.zeros((p, samples), dtype=bool) for p in pdos]
         self.duplicates = [0] * len(node_ids)
         self.late = [0] * len(node_ids)
@@ -191,6 +206,13 @@ class Sampler:
                 parked, self._parked = self._parked, []
                 for args in parked:
                     self._take(*args)
+
+    def command(self, d: int, k: int, raw: int) -> None:
+        """Drive ``d`` was commanded the raw target ``raw`` for window ``k`` (it acts from
+        SYNC ``k`` to the next); kept when it is one of :data:`TARGET_FIELDS`."""
+        name = self.target_fields.get(d)
+        if name is not None:
+            self.raw[d][name][k] = raw
 
     def missing(self, k: int) -> list[int]:
         """The drives (numbers) that lack a TPDO of window ``k``."""
@@ -257,7 +279,7 @@ class Sampler:
                     columns[name] = _unwrap_int32(values) * s.rad_per_count
                 elif name == "current_A":
                     columns[name] = values * s.amp_per_unit
-                elif name == "velocity_rad_s":
+                elif name in ("velocity_rad_s", "speed_target_rad_s"):
                     columns[name] = values * s.velocity_unit_rad_s
                 elif name == "voltage_V":
                     columns[name] = values * s.voltage_unit_V

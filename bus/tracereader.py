@@ -12,6 +12,13 @@ Which objects a TPDO carries comes, in this order, from
 2. the drive's EDS, where it gives a non-empty default mapping;
 3. the mapping motorstand's master writes to a drive of that EDS (:func:`bus.drive.tpdo_objects`).
 
+The RPDOs before a SYNC give each drive's target for that SYNC's window (the last one
+before it; a drive holds its target until the next) where they carry a target that a run
+file has a column for (:data:`bus.sampler.TARGET_FIELDS`: the target velocity). Their
+mapping comes from the same three places as the TPDOs' (0x1400-0x1403 and 0x1600-0x1603;
+motorstand's master maps RPDO1 to the controlword and the target of the drive's mode, and
+the speed mode's is the only one of six bytes).
+
 The SYNC period is the communication cycle period 0x1006 written over SDO when the trace
 has it, else the one given, else the median spacing of the SYNC stamps (which is wall time,
 not stand time, for a lockstep run: the result warns).
@@ -32,11 +39,13 @@ import can
 import canopen
 import numpy as np
 
+from bus import cia402
+from bus.cia301 import RPDO_BASES, RPDO_COMMUNICATION, RPDO_MAPPING
 from bus.device import eds_identity, is_simulated
 from bus.drive import TPDO_COMM, TPDO_MAP, tpdo_objects
 from bus.eds import Scaling, load_od
 from bus.pdo import COB_ID_INVALID, Layout, entries_for
-from bus.sampler import Sampler, Samples
+from bus.sampler import TARGET_FIELDS, Sampler, Samples
 from bus.sync import SYNC_COB_ID
 from bus.trace import TRACE_SUFFIXES
 from stand.errors import InputError
@@ -127,6 +136,39 @@ def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int]
         yield cob & 0x7FF, Layout.from_entries(od, entries)
 
 
+def _targets(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
+             lengths: Mapping[int, int]) -> Iterator[tuple[int, int, Layout]]:
+    """(COB-ID, target object, layout) of each RPDO of ``node`` in the trace that carries a
+    target of :data:`~bus.sampler.TARGET_FIELDS`: mapped over SDO in the trace, by the EDS's
+    defaults, or, on the simulated drive, as motorstand's master maps RPDO1 (controlword and
+    the target of the one mode whose PDO has the length of the frames, ``lengths``: COB-ID →
+    bytes of its first frame)."""
+    ours = _is_simulated_eds(od)
+    for p in range(len(RPDO_BASES)):
+        comm, mapping = RPDO_COMMUNICATION + p, RPDO_MAPPING + p
+        cob = sdo.get((comm, 1), _default(od, comm, 1) or RPDO_BASES[p] + node)
+        if cob & COB_ID_INVALID or (cob & 0x7FF) not in lengths:
+            continue
+        if (mapping, 0) in sdo:
+            layouts = [[sdo.get((mapping, k), 0) for k in range(1, sdo[(mapping, 0)] + 1)]]
+        elif _default(od, mapping, 0) and not ours:
+            layouts = [[_default(od, mapping, k) for k in range(1, _default(od, mapping, 0) + 1)]]
+        elif p == 0 and ours:
+            layouts = [entries_for(od, [cia402.CONTROLWORD, index])
+                       for index, _, _ in cia402.TARGET_OBJECT.values() if index in od]
+        else:
+            continue
+        fitting = [layout for layout in (Layout.from_entries(od, e) for e in layouts)
+                   if len(layouts) == 1 or layout.packer.size == lengths[cob & 0x7FF]]
+        if len(fitting) != 1:
+            continue
+        layout = fitting[0]
+        for index in layout.indices:
+            if index in TARGET_FIELDS:
+                yield cob & 0x7FF, index, layout
+                break
+
+
 def _is_simulated_eds(od: canopen.ObjectDictionary) -> bool:
     identity = eds_identity(od)
     return identity is not None and is_simulated(identity)
@@ -189,7 +231,11 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     if not syncs:
         raise InputError(f"{path}: no SYNC frame (COB-ID 0x080) in the trace; samples are "
                          "aligned by SYNC")
-    seen = {m.arbitration_id for m in frames if not m.is_extended_id}
+    lengths: dict[int, int] = {}  # COB-ID → bytes of its first frame
+    for m in frames:
+        if not m.is_extended_id:
+            lengths.setdefault(m.arbitration_id, len(m.data))
+    seen = set(lengths)
     sdo = sdo_values(frames)
     candidates = sorted({cob - base for cob in seen for base in TPDO_BASES
                          if 1 <= cob - base <= 127} | {n for n, v in sdo.items()
@@ -197,6 +243,8 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
                                                                for k in v)})
     nodes = [node] if node is not None else candidates
     tpdos: dict[int, tuple[int, int, Layout]] = {}
+    rpdos: dict[int, tuple[int, int, Layout]] = {}  # COB-ID → (drive, field in the PDO, layout)
+    targets: list[int | None] = []
     node_ids: list[int] = []
     mapping_from: dict[int, str] = {}
     for n in nodes:
@@ -204,6 +252,11 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
         found = list(_tpdos(n, od, sdo.get(n, {}), seen))
         if not found or any(cob in tpdos for cob, _ in found):
             continue
+        target = next(_targets(n, od, sdo.get(n, {}), lengths), None)
+        if target is not None and target[0] not in tpdos:
+            cob, index, layout = target
+            rpdos[cob] = (len(node_ids), layout.indices.index(index), layout)
+        targets.append(target[1] if target is not None else None)
         own = sdo.get(n, {})
         mapping_from[n] = ("sdo" if any((TPDO_MAP + p, 0) in own for p in range(4))
                            else "eds" if _default(od, TPDO_MAP, 0) and not _is_simulated_eds(od)
@@ -233,8 +286,9 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     # stamp of the SYNC before it, and no synchronous window bounds the delay (a lockstep
     # run's stamps are wall time).
     sampler = Sampler(tpdos, node_ids, [scaling or Scaling()] * len(node_ids), len(syncs),
-                      period, window_s=math.inf)
+                      period, window_s=math.inf, targets=targets)
     k, stamp = -1, 0.0
+    held: dict[int, int] = {}  # drive → the raw target of its last RPDO
     for msg in frames:
         can_id = msg.arbitration_id
         if msg.is_extended_id:
@@ -244,10 +298,25 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
             counter = msg.data[0] if len(msg.data) else 0
             sampler.open(k, stamp, counter)
             sampler.sent(stamp, counter)
+            for d, raw in held.items():
+                sampler.command(d, k, raw)
         elif can_id in tpdos:
             sampler.on_tpdo(can_id, bytearray(msg.data), stamp)
+        elif can_id in rpdos:
+            d, position, layout = rpdos[can_id]
+            if len(msg.data) < layout.packer.size:
+                raise InputError(f"{path}: RPDO 0x{can_id:03X} at {msg.timestamp:.6f} s has "
+                                 f"{len(msg.data)} bytes; its mapping needs {layout.packer.size}")
+            held[d] = layout.unpack(msg.data)[position]
     sampler.close()
     samples = sampler.result(len(syncs))
+    for drive in samples.drives:
+        for name in TARGET_FIELDS.values():
+            values = drive.columns.get(name)
+            if values is not None and np.isnan(values[drive.valid]).any():
+                del drive.columns[name]
+                warnings.append(f"node {drive.node_id}: SYNCs before its first RPDO; its "
+                                f"{name} is left out")
     if not samples.complete:
         warnings.append(f"TPDOs missing in the trace: {samples.lost} (node: count); those "
                         "samples are left out")

@@ -202,7 +202,10 @@ def check_limits(procedure: Procedure, drives: Sequence[DriveSetup]) -> None:
 
 def run_columns(kind: str, samples: Samples, start: int = 0,
                 stop: int | None = None) -> dict[str, np.ndarray]:
-    """Run-file columns (CONTRACT §1) of the bus samples ``start:stop``, gaps left out."""
+    """Run-file columns (CONTRACT §1) of the bus samples ``start:stop``, gaps left out.
+
+    A single-motor run in speed mode has ``speed_target_rad_s``: the target velocity the
+    drive was sent for each sample's period, as it went over the bus."""
     stop = samples.count if stop is None else stop
     rows = slice(start, stop)
     drives = samples.drives
@@ -216,7 +219,8 @@ def run_columns(kind: str, samples: Samples, start: int = 0,
         return None if values is None else values[rows][valid]
 
     names = {"single": [("current_A", "current_A"), ("position_rad", "position_rad"),
-                        ("velocity_rad_s", "velocity_rad_s"), ("voltage_V", "voltage_V")],
+                        ("velocity_rad_s", "velocity_rad_s"), ("voltage_V", "voltage_V"),
+                        ("speed_target_rad_s", "speed_target_rad_s")],
              "step": [("voltage_V", "voltage_V"), ("velocity_rad_s", "velocity_rad_s"),
                       ("current_A", "current_A"), ("position_rad", "position_rad")]}
     if kind == "reducer":

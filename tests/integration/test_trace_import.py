@@ -18,12 +18,15 @@ from numpy.testing import assert_array_equal
 
 from bus import cia402
 from bus.adapters import BusConfig
+from bus.eds import VELOCITY_UNIT_RAD_S
+from bus.simstand import scaling_for
 from bus.stand_bus import StandBus
 from bus.tracereader import decode_dbc, decode_trace, sdo_values
 from stand.cli import main
-from stand.controller import ExperimentProfile, StandController
+from stand.controller import ExperimentProfile, StandController, plan
 from stand.errors import InputError
 from stand.importer import import_run
+from stand.profiles import load_motor
 from stand.runfile import read_run
 from stand.sources import ReadOptions
 
@@ -68,6 +71,22 @@ def test_a_run_reads_back_exactly_from_its_trace(runs: dict[str, Path], fmt: str
         assert_array_equal(decoded[name], recorded[name], err_msg=name)
 
 
+def test_a_speed_run_keeps_the_target_it_was_sent(runs: dict[str, Path]) -> None:
+    """The controller writes the speed target of each sample's period as it went over the
+    bus (0x60FF in steps of 0.001 rad/s), and the trace's RPDOs give the same back."""
+    experiment = ExperimentProfile(name="trace", procedure="no_load", motor=MOTOR, duration_s=1.0,
+                                   period_s=1e-3)
+    procedure = plan(experiment)[0][0]
+    sent = np.array([round(v / VELOCITY_UNIT_RAD_S) for v in procedure.commands[0].values])
+    assert procedure.commands[0].mode == "speed" and np.ptp(sent) > 1000  # a varying target
+    recorded = read_run(runs["log"] / "no_load_1.csv")
+    np.testing.assert_allclose(recorded["speed_target_rad_s"], sent * VELOCITY_UNIT_RAD_S,
+                               rtol=1e-9, atol=0)  # the CSV's 9 significant digits
+    decoded = decode_trace(runs["log"] / "no_load_1.log", scaling=scaling_for(load_motor(MOTOR)))
+    assert_array_equal(decoded.samples.drives[0].columns["speed_target_rad_s"],
+                       sent * VELOCITY_UNIT_RAD_S)
+
+
 def test_without_period_or_motor_the_import_warns(runs: dict[str, Path]) -> None:
     decoded = decode_trace(runs["log"] / "no_load_1.log")
     assert decoded.period_from == "sync stamps"
@@ -93,8 +112,20 @@ def test_mapping_and_period_come_from_the_traces_sdo_traffic(tmp_path: Path) -> 
         _sdo_download(node, 0x1A00, 0, 1, 1),
         _sdo_download(node, 0x1800, 1, cob, 4),
     ]
+    # RPDO2 on 0x325 carries the target velocity after the controlword.
+    frames += [
+        _sdo_download(node, 0x1401, 1, 0x325 | 0x8000_0000, 4),
+        _sdo_download(node, 0x1601, 1, (cia402.CONTROLWORD << 16) | 16, 4),
+        _sdo_download(node, 0x1601, 2, (cia402.TARGET_VELOCITY << 16) | 32, 4),
+        _sdo_download(node, 0x1601, 0, 2, 1),
+        _sdo_download(node, 0x1401, 1, 0x325, 4),
+    ]
     velocities = [0, 1000, -2500, 40000]  # raw, 1e-3 rad/s each
+    targets = {0: 7, 1: -300, 3: 5}  # raw; none sent before SYNC 2: the drive holds -300
     for k, raw in enumerate(velocities):
+        if k in targets:
+            frames.append(can.Message(arbitration_id=0x325, is_extended_id=False, data=(
+                0x0F.to_bytes(2, "little") + targets[k].to_bytes(4, "little", signed=True))))
         frames.append(can.Message(arbitration_id=0x80, data=bytes([k + 1]), is_extended_id=False))
         frames.append(can.Message(arbitration_id=cob, data=raw.to_bytes(4, "little", signed=True),
                                   is_extended_id=False))
@@ -110,6 +141,8 @@ def test_mapping_and_period_come_from_the_traces_sdo_traffic(tmp_path: Path) -> 
     assert decoded.mapping_from == {node: "sdo"}
     assert_array_equal(decoded.samples.drives[0].columns["velocity_rad_s"],
                        np.array(velocities) * 1e-3)
+    assert_array_equal(decoded.samples.drives[0].columns["speed_target_rad_s"],
+                       np.array([7, -300, -300, 5]) * 1e-3)
 
 
 def test_dbc_signals_decode_through_cantools(tmp_path: Path) -> None:
