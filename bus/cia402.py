@@ -46,6 +46,9 @@ ERROR_CODE = 0x603F
 QUICK_STOP_OPTION = 0x605A
 MAX_CURRENT = 0x6073
 RATED_CURRENT = 0x6075
+#: Position encoder resolution: encoder increments (sub 1) per motor revolutions (sub 2).
+POSITION_ENCODER_RESOLUTION = 0x608F
+ENCODER_INCREMENTS, MOTOR_REVOLUTIONS = 1, 2
 ADDED_INERTIA = 0x2100
 
 # EMCY error codes (CiA 301 / 402).

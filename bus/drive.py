@@ -172,6 +172,37 @@ class Drive:
                              f"real drive ({found.describe()}): run it in speed or current mode")
         return found
 
+    def check_units(self) -> None:
+        """Read the motor rated current 0x6075 and the position encoder resolution 0x608F,
+        where the EDS has them, and compare them with the units of :attr:`config`; writes
+        nothing. The reads also put the drive's units into a trace of the setup.
+
+        Raises
+        ------
+        DeviceMismatch
+            The drive's rated current or encoder resolution is not the one its scaling (the
+            motor profile) says: currents or positions would be read in the wrong unit.
+        """
+        scaling = self.config.scaling
+        if self.has(cia402.RATED_CURRENT):
+            rated_mA = int(self.read(cia402.RATED_CURRENT))
+            if rated_mA != scaling.rated_current_mA:
+                raise DeviceMismatch(
+                    f"node {self.id}: motor rated current 0x6075 is {rated_mA} mA, the motor profile "
+                    f"says {scaling.rated_current_A:g} A; currents (per mille of 0x6075) would be "
+                    "misread; set the profile's drive.rated_current_A or the drive's 0x6075; "
+                    "nothing was written to it")
+        if self.has(cia402.POSITION_ENCODER_RESOLUTION):
+            increments = int(self.read(cia402.POSITION_ENCODER_RESOLUTION, cia402.ENCODER_INCREMENTS))
+            revolutions = int(self.read(cia402.POSITION_ENCODER_RESOLUTION, cia402.MOTOR_REVOLUTIONS))
+            if increments != scaling.counts_per_rev * revolutions:
+                raise DeviceMismatch(
+                    f"node {self.id}: position encoder resolution 0x608F is {increments} increments "
+                    f"per {revolutions} revolution(s), the motor profile's encoder gives "
+                    f"{scaling.counts_per_rev} counts per revolution; positions (0x6064, read as "
+                    "encoder increments) would be misread; fix the profile's encoder or the drive; "
+                    "nothing was written to it")
+
     # -- PDO mapping -------------------------------------------------------------------
     def _map(self, comm: int, mapping: int, indices: list[int]) -> tuple[int, Layout]:
         cob_id = int(self.read(comm, 1)) & 0x7FF

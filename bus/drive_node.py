@@ -149,7 +149,10 @@ class SimDriveNode:
         self._tpdos: list[tuple[int, Layout, int]] | None = None
         self._resubscribe({})
         self.node.data_store.setdefault(cia402.RATED_CURRENT, {})[0] = struct.pack(
-            "<I", int(round(self.scaling.rated_current_A * 1000)))
+            "<I", self.scaling.rated_current_mA)
+        resolution = self.node.data_store.setdefault(cia402.POSITION_ENCODER_RESOLUTION, {})
+        resolution[cia402.ENCODER_INCREMENTS] = struct.pack("<I", self.scaling.counts_per_rev)
+        resolution[cia402.MOTOR_REVOLUTIONS] = struct.pack("<I", 1)
         self.node.data_store.setdefault(cia402.MAX_CURRENT, {})[0] = struct.pack(
             "<H", min(0xFFFF, int(self.max_current_A / self.scaling.amp_per_unit)))
 

@@ -5,8 +5,8 @@ drive; a real drive's EDS may be given instead. Units of the raw process data:
 
 - position actual 0x6064: encoder counts, ``counts_per_rev`` per revolution;
 - velocity actual 0x606C and target velocity 0x60FF: ``velocity_unit_rad_s`` each;
-- current actual 0x6078 and target torque 0x6071: per mille of rated current 0x6075
-  (the drive's rated torque 0x6076 is taken as the torque at rated current);
+- current actual 0x6078 and target torque 0x6071: per mille of rated current 0x6075 (in
+  mA; the drive's rated torque 0x6076 is taken as the torque at rated current);
 - voltage command 0x2000 and voltage actual 0x2001: ``voltage_unit_V`` each.
 """
 
@@ -30,6 +30,8 @@ VELOCITY_UNIT_RAD_S = 1e-3
 #: Unit of the voltage objects, V.
 VOLTAGE_UNIT_V = 1e-3
 PER_MILLE = 1000.0
+#: Unit of the motor rated current 0x6075: mA.
+MA_PER_A = 1000.0
 
 
 def load_od(path: str | Path | None, node_id: int) -> canopen.ObjectDictionary:
@@ -69,6 +71,11 @@ class Scaling:
     @property
     def amp_per_unit(self) -> float:
         return self.rated_current_A / PER_MILLE
+
+    @property
+    def rated_current_mA(self) -> int:
+        """The rated current as 0x6075 holds it, mA."""
+        return int(round(self.rated_current_A * MA_PER_A))
 
     def target_raw(self, mode: str, value: float) -> int:
         """Raw target of ``mode`` (speed rad/s, current A, voltage V)."""

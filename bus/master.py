@@ -132,6 +132,8 @@ class Master:
         self.quick_stop_wall_s: float | None = None
         #: Windows of the last run whose targets left after their (kernel's) SYNC.
         self.late_target_windows: list[int] = []
+        #: The trace being written (from :meth:`setup` or :meth:`run` to the run's end).
+        self._trace: Trace | None = None
 
     # -- setup -----------------------------------------------------------------------------
     def _forget_drives(self) -> None:
@@ -141,7 +143,8 @@ class Master:
         self.drives = []
 
     def setup(self, drives: Sequence[DriveConfig], period_s: float,
-              added_inertia_kgm2: float | None = None, time_mode: str = "lockstep") -> None:
+              added_inertia_kgm2: float | None = None, time_mode: str = "lockstep",
+              trace_path: str | Path | None = None) -> None:
         """Reset, configure and enable ``drives`` for SYNC period ``period_s`` seconds.
 
         In ``realtime`` the synchronous window 0x1007 is set to ``SYNC_WINDOW_FRACTION`` of
@@ -149,7 +152,13 @@ class Master:
 
         ``added_inertia_kgm2`` is written to the simulated drive's 0x2100 (the first drive);
         a real drive has no such object and the operator attaches the disk by hand. Every
-        device is checked (:meth:`~bus.drive.Drive.check_device`) before anything is written.
+        device is checked (:meth:`~bus.drive.Drive.check_device`, then its units,
+        :meth:`~bus.drive.Drive.check_units`) before anything is written.
+
+        With ``trace_path`` the trace starts before the NMT reset and goes on through the
+        next :meth:`run`: it holds the SDO traffic that says what the run's frames mean (the
+        PDO mappings, the cycle period 0x1006, the drives' units 0x6075 and 0x608F), so
+        :func:`bus.tracereader.decode_trace` needs nothing else.
         """
         if period_s <= 0:
             raise InputError(f"period_s must be > 0, got {period_s}")
@@ -158,6 +167,16 @@ class Master:
         ids = [d.node_id for d in drives]
         if len(set(ids)) != len(ids):
             raise InputError(f"node ids must differ, got {ids}")
+        self._start_trace(trace_path)
+        try:
+            self._configure(drives, period_s, added_inertia_kgm2, window_us)
+        except BaseException:
+            self._end_trace()
+            raise
+
+    def _configure(self, drives: Sequence[DriveConfig], period_s: float,
+                   added_inertia_kgm2: float | None, window_us: int) -> None:
+        """:meth:`setup` from the NMT reset to OPERATION ENABLED."""
         self._forget_drives()
         self.period_s = period_s
         self._quick_stop.clear()
@@ -174,6 +193,7 @@ class Master:
                                  "after NMT reset node; is the drive powered, on this bus, at this id?")
         for drive in self.drives:  # every device checked before anything is written to any
             drive.check_device()
+            drive.check_units()
         for n, drive in enumerate(self.drives):
             drive.write(PRODUCER_HEARTBEAT_TIME, 0, max(1, int(round(self.heartbeat_period_s * 1000))))
             self.supervisor.producing(drive.id)
@@ -304,13 +324,14 @@ class Master:
             raise InputError(f"targets: {len(self.drives)} drive(s) set up, got {targets.shape[0]} rows")
         if not self.drives or any(d.rpdo is None for d in self.drives):
             raise InputError("call setup() before run()")
+        if trace_path is not None and self._trace is not None and Path(trace_path) != self._trace.path:
+            raise InputError(f"trace_path {trace_path}: setup() started the trace {self._trace.path}; "
+                             "give run() the same file or none")
         self._set_sync_window(time_mode)  # in case setup() was told another time mode
         loop = RunLoop(self, targets, time_mode)
-        trace = Trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ()) if trace_path else None
-        if trace is not None:
-            assert self.network.notifier is not None
-            self.network.notifier.add_listener(trace)
-            self.network.trace = trace
+        if self._trace is None:
+            self._start_trace(trace_path)
+        trace = self._trace
         self._sync_watch = loop.watch
         self.supervisor.expect_operational([d.id for d in self.drives])
         self._run_thread, self._stop_done = threading.get_ident(), threading.Event()
@@ -336,11 +357,7 @@ class Master:
                 aborted = "stop requested"
         finally:
             self._stop_done.set()
-            if trace is not None:
-                self.network.trace = None
-                assert self.network.notifier is not None
-                self.network.notifier.remove_listener(trace)
-                trace.stop()
+            self._end_trace()
         samples = loop.samples(aborted, error, trace)
         self.late_target_windows = loop.late_target_windows
         for d, ds in zip(self.drives, samples.drives, strict=True):
@@ -373,8 +390,29 @@ class Master:
                 "running": self.running, "time_mode": self.time_mode, "period_s": self.period_s,
                 "window": self.window, "nodes": nodes}
 
+    # -- the trace -------------------------------------------------------------------------
+    def _start_trace(self, path: str | Path | None) -> None:
+        """Log every frame on the bus to ``path`` from now on (none: no trace)."""
+        self._end_trace()
+        if path is None:
+            return
+        trace = Trace(path, (SYNC_COB_ID,) if self.sync_echo else ())
+        assert self.network.notifier is not None
+        self.network.notifier.add_listener(trace)
+        self.network.trace = self._trace = trace
+
+    def _end_trace(self) -> None:
+        """Close the trace being written, if any."""
+        trace, self._trace = self._trace, None
+        if trace is not None:
+            self.network.trace = None
+            if self.network.notifier is not None:
+                self.network.notifier.remove_listener(trace)
+            trace.stop()
+
     def close(self) -> None:
         """Stop the reader thread and shut the bus down (drives are left as they are)."""
+        self._end_trace()
         self._forget_drives()
         self.network.disconnect()
 

@@ -19,6 +19,10 @@ mapping comes from the same three places as the TPDOs' (0x1400-0x1403 and 0x1600
 motorstand's master maps RPDO1 to the controlword and the target of the drive's mode, and
 the speed mode's is the only one of six bytes).
 
+Each drive's units come from the scaling given, else from the trace's SDO traffic (the
+answers to the master's reads of the motor rated current 0x6075 and the position encoder
+resolution 0x608F, or writes of them), else the defaults (:class:`~bus.eds.Scaling`).
+
 The SYNC period is the communication cycle period 0x1006 written over SDO when the trace
 has it, else the one given, else the median spacing of the SYNC stamps (which is wall time,
 not stand time, for a lockstep run: the result warns).
@@ -43,7 +47,7 @@ from bus import cia402
 from bus.cia301 import RPDO_BASES, RPDO_COMMUNICATION, RPDO_MAPPING
 from bus.device import eds_identity, is_simulated
 from bus.drive import TPDO_COMM, TPDO_MAP, tpdo_objects
-from bus.eds import Scaling, load_od
+from bus.eds import MA_PER_A, Scaling, load_od
 from bus.pdo import COB_ID_INVALID, Layout, entries_for
 from bus.sampler import TARGET_FIELDS, Sampler, Samples
 from bus.sync import SYNC_COB_ID
@@ -169,6 +173,19 @@ def _targets(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, in
                 break
 
 
+def _units(sdo: Mapping[tuple[int, int], int]) -> Scaling | None:
+    """A drive's units from its rated current 0x6075 and encoder resolution 0x608F in the
+    trace's SDO traffic; None unless both are there (and a whole number of increments per
+    revolution)."""
+    rated_mA = sdo.get((cia402.RATED_CURRENT, 0))
+    resolution = cia402.POSITION_ENCODER_RESOLUTION
+    increments = sdo.get((resolution, cia402.ENCODER_INCREMENTS))
+    revolutions = sdo.get((resolution, cia402.MOTOR_REVOLUTIONS))
+    if not rated_mA or not increments or not revolutions or increments % revolutions:
+        return None
+    return Scaling(counts_per_rev=increments // revolutions, rated_current_A=rated_mA / MA_PER_A)
+
+
 def _is_simulated_eds(od: canopen.ObjectDictionary) -> bool:
     identity = eds_identity(od)
     return identity is not None and is_simulated(identity)
@@ -189,6 +206,8 @@ class DecodedTrace:
     mapping_from : dict
         Node id → ``sdo``, ``eds`` or ``motorstand master`` (where its TPDO mapping came from).
     warnings : list of str
+    units_from : dict
+        Node id → ``given``, ``sdo 0x6075 0x608F`` or ``default`` (where its units came from).
     """
 
     samples: Samples
@@ -196,6 +215,7 @@ class DecodedTrace:
     period_from: str
     mapping_from: dict[int, str]
     warnings: list[str] = field(default_factory=list)
+    units_from: dict[int, str] = field(default_factory=dict)
 
 
 def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
@@ -208,8 +228,8 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     path : str or Path
         ``.log``, ``.asc`` or ``.blf`` trace.
     scaling : Scaling, optional
-        Units of the drives' raw values (default: :class:`~bus.eds.Scaling` defaults); the
-        encoder resolution and the rated current are not on the bus.
+        Units of the drives' raw values (default: each drive's from the trace's SDO traffic,
+        0x6075 and 0x608F, else the :class:`~bus.eds.Scaling` defaults).
     eds : path, optional
         The drives' EDS (default: the simulated drive's).
     node : int, optional
@@ -282,11 +302,20 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
                         "the period when it is known")
         if not period > 0:
             raise InputError(f"{path}: one SYNC and no period; give the SYNC period")
+    units_from = {n: "given" if scaling is not None else "default" if _units(sdo.get(n, {})) is None
+                  else "sdo 0x6075 0x608F" for n in node_ids}
+    scalings = [scaling or _units(sdo.get(n, {})) or Scaling() for n in node_ids]
+    for n in node_ids:
+        units = _units(sdo.get(n, {}))
+        if scaling is not None and units is not None and units != scaling:
+            warnings.append(f"node {n}: the trace says {units.counts_per_rev} counts per revolution "
+                            f"and {units.rated_current_A:g} A rated current (0x608F, 0x6075); the "
+                            "given units are used")
     # The trace's order says which SYNC a TPDO answers: each TPDO is judged against the
     # stamp of the SYNC before it, and no synchronous window bounds the delay (a lockstep
     # run's stamps are wall time).
-    sampler = Sampler(tpdos, node_ids, [scaling or Scaling()] * len(node_ids), len(syncs),
-                      period, window_s=math.inf, targets=targets)
+    sampler = Sampler(tpdos, node_ids, scalings, len(syncs), period, window_s=math.inf,
+                      targets=targets)
     k, stamp = -1, 0.0
     held: dict[int, int] = {}  # drive → the raw target of its last RPDO
     for msg in frames:
@@ -320,7 +349,7 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     if not samples.complete:
         warnings.append(f"TPDOs missing in the trace: {samples.lost} (node: count); those "
                         "samples are left out")
-    return DecodedTrace(samples, period, period_from, mapping_from, warnings)
+    return DecodedTrace(samples, period, period_from, mapping_from, warnings, units_from)
 
 
 def decode_dbc(path: str | Path, dbc: str | Path) -> dict[str, np.ndarray]:

@@ -81,10 +81,14 @@ ProgressCallback = Callable[[int, int], None]
 
 
 class StandBus(Protocol):
-    """A bus with drives on it: set them up, run a command sequence, stop them."""
+    """A bus with drives on it: set them up, run a command sequence, stop them.
+
+    A ``trace_path`` given to ``setup`` starts the trace there, and the ``run`` that follows
+    goes on writing it (given the same file or none)."""
 
     def setup(self, drives: Sequence[DriveSetup], period_s: float,
-              added_inertia_kgm2: float | None = None, time_mode: str = ...) -> None: ...
+              added_inertia_kgm2: float | None = None, time_mode: str = ...,
+              trace_path: str | Path | None = ...) -> None: ...
     def run(self, targets: np.ndarray, *, time_mode: str = ..., on_chunk: ChunkCallback | None = ...,
             chunk_samples: int = ..., stop: threading.Event | None = ...,
             progress: ProgressCallback | None = ..., trace_path: str | Path | None = ...) -> Samples: ...

@@ -324,8 +324,10 @@ class StandController:
         if out is not None:
             out.mkdir(parents=True, exist_ok=True)
         started = time.monotonic()
+        # The trace starts before the setup, so it holds what its frames mean (mappings,
+        # cycle period, units) and reads back without being told.
         self.bus.setup(drives, procedure.sample_period_s, procedure.added_inertia_kgm2,
-                       self.time_mode)
+                       self.time_mode, trace_path=trace)
         try:
             samples = self.bus.run(targets, time_mode=self.time_mode, on_chunk=on_chunk,
                                    chunk_samples=self.chunk_samples, stop=self.stop,

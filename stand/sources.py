@@ -42,7 +42,7 @@ class ReadOptions:
         CAN traces: which run columns to build from the drives' samples.
     motor : str or None
         CAN traces: motor profile (name or path) giving the encoder counts per revolution
-        and the rated current, which are not on the bus.
+        and the rated current (default: the drives' 0x608F and 0x6075 in the trace).
     eds : str or None
         CAN traces: the drives' EDS (default: the simulated drive's).
     node : int or None
@@ -125,12 +125,14 @@ def _trace(path: Path, options: ReadOptions) -> Source:
                          f"({', '.join(map(str, decoded.mapping_from))}); a {options.kind} run "
                          f"needs {'two' if options.kind == 'reducer' else 'one'} (give --node)")
     warnings = list(decoded.warnings)
-    if scaling is None:
-        warnings.append("no --motor profile: positions and currents use the default scaling "
-                        "(2^20 counts per revolution, rated current 1 A)")
+    unknown = [str(n) for n, origin in decoded.units_from.items() if origin == "default"]
+    if unknown:
+        warnings.append(f"node {', '.join(unknown)}: no --motor profile and no 0x6075/0x608F in "
+                        "the trace: positions and currents use the default scaling (2^20 counts "
+                        "per revolution, rated current 1 A)")
     meta = {"period_s": decoded.period_s, "period_from": decoded.period_from,
-            "mapping_from": decoded.mapping_from, "lost": decoded.samples.lost,
-            "motor": options.motor}
+            "mapping_from": decoded.mapping_from, "units_from": decoded.units_from,
+            "lost": decoded.samples.lost, "motor": options.motor}
     return Source(run_columns(options.kind, decoded.samples), meta, warnings=warnings)
 
 

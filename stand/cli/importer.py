@@ -8,7 +8,8 @@ Examples::
     stand import scope.csv -o run.csv --decimal , --map time_s=t/1000 \\
         --map "position_rad=deg2rad(angle)" --map current_A=I
     stand import RUN.mf4 -o run.csv
-    stand import no_load_1.log -o run.csv --motor crouzet_82800502 --period 0.001
+    stand import no_load_1.log -o run.csv     # a trace of stand run: no flags needed
+    stand import late.log -o run.csv --motor crouzet_82800502 --period 0.001
     stand import bus.blf --dbc drive.dbc --list
 
     stand import DATA_EMPS.mat -o emps.csv --map time_s=t --map position_rad=qm \\
@@ -58,7 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="text files: lines to skip before the header (a units row under "
                              "the header is detected)")
     parser.add_argument("--motor", help="CAN traces: motor profile giving encoder counts per "
-                                        "revolution and rated current")
+                                        "revolution and rated current (default: the trace's "
+                                        "0x608F and 0x6075)")
     parser.add_argument("--eds", help="CAN traces: the drives' EDS (default: motorstand's)")
     parser.add_argument("--node", type=options.whole(1, 127), help="CAN traces: decode this node only")
     parser.add_argument("--dbc", help="CAN traces: decode the signals of this DBC instead of "

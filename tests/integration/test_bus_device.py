@@ -124,3 +124,30 @@ def test_voltage_mode_is_refused_on_a_real_drive(can_config: BusConfig, tmp_path
                      heartbeat_period_s=CALM_HEARTBEAT_S) as bus, \
             pytest.raises(InputError, match="node 1: voltage mode is the simulated drive's"):
         bus.setup(in_voltage, 0.001)
+
+
+@pytest.mark.parametrize(("field", "wrong", "message"), [
+    ("counts_per_rev", 4096, r"node 1: position encoder resolution 0x608F is 10000 increments per "
+                             r"1 revolution\(s\), the motor profile's encoder gives 4096 counts"),
+    ("rated_current_A", 2.0, r"node 1: motor rated current 0x6075 is 1000 mA, the motor profile "
+                             r"says 2 A"),
+])
+def test_a_drive_whose_units_are_not_the_profiles_is_refused_before_anything_is_written(
+        can_config: BusConfig, field: str, wrong: float, message: str) -> None:
+    """Positions and currents travel in the drive's units (0x608F increments, per mille of
+    0x6075): a profile that says otherwise would have every sample misread."""
+    (_, drives), = plan(ADDED_INERTIA)
+    assert (drives[0].counts_per_rev, drives[0].rated_current_A) == (10_000, 1.0)  # the profile's
+    misdescribed = [type(drives[0])(**{**drives[0].__dict__, field: wrong})]
+    requests = SdoRequests(1)
+    with SimStand(MOTOR, can_config), \
+            can.Bus(interface=can_config.interface, channel=can_config.channel) as witness:
+        notifier = can.Notifier(witness, [requests], timeout=0.05)
+        try:
+            with StandBus(None, can_config, simulate=False,
+                          heartbeat_period_s=CALM_HEARTBEAT_S) as bus, \
+                    pytest.raises(DeviceMismatch, match=message + r".*nothing was written"):
+                bus.setup(misdescribed, 0.001)
+        finally:
+            notifier.stop()
+    assert requests.commands and CCS_DOWNLOAD not in requests.commands  # reads only

@@ -55,15 +55,19 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.mark.parametrize("fmt", ["log", "asc", "blf"])
-def test_a_run_reads_back_exactly_from_its_trace(runs: dict[str, Path], fmt: str,
+@pytest.mark.parametrize("flags", [[], ["--motor", MOTOR, "--period", "0.001"]], ids=["bare", "told"])
+def test_a_run_reads_back_exactly_from_its_trace(runs: dict[str, Path], fmt: str, flags: list[str],
                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The trace starts before the setup: its SDO traffic gives the mappings, the period and
+    the drive's units, so the import needs no flags (and flags that agree change nothing)."""
     folder = runs[fmt]
-    back = folder / "back.csv"
-    assert main(["import", str(folder / f"no_load_1.{fmt}"), "-o", str(back), "--json",
-                 "--motor", MOTOR, "--period", "0.001"]) == 0
+    back = folder / f"back{len(flags)}.csv"
+    assert main(["import", str(folder / f"no_load_1.{fmt}"), "-o", str(back), "--json", *flags]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["warnings"] == []
-    assert result["file_meta"]["mapping_from"] == {"1": "motorstand master"}
+    meta = result["file_meta"]
+    assert meta["mapping_from"] == {"1": "sdo"} and meta["period_from"] == "sdo 0x1006"
+    assert meta["units_from"] == {"1": "given" if flags else "sdo 0x6075 0x608F"}
     recorded, decoded = read_run(folder / "no_load_1.csv"), read_run(back)
     assert sorted(decoded.columns) == sorted(recorded.columns)
     assert len(decoded) == 1000
@@ -87,10 +91,26 @@ def test_a_speed_run_keeps_the_target_it_was_sent(runs: dict[str, Path]) -> None
                        sent * VELOCITY_UNIT_RAD_S)
 
 
-def test_without_period_or_motor_the_import_warns(runs: dict[str, Path]) -> None:
-    decoded = decode_trace(runs["log"] / "no_load_1.log")
-    assert decoded.period_from == "sync stamps"
-    assert "wall time" in decoded.warnings[0]
+def test_a_trace_without_the_setup_decodes_with_the_masters_mapping_and_warns(
+        runs: dict[str, Path], tmp_path: Path) -> None:
+    """A trace begun after the SDO setup (candump started late): the master's own mapping,
+    the period from the SYNC stamps and the default units, each with a warning."""
+    path = tmp_path / "late.log"
+    with can.Logger(str(path)) as logger:
+        for msg in can.LogReader(str(runs["log"] / "no_load_1.log")):
+            if not 0x580 <= msg.arbitration_id < 0x680:  # no SDO traffic
+                logger.on_message_received(msg)
+    run = import_run(path, [], "single")
+    assert run.meta["file_meta"]["mapping_from"] == {1: "motorstand master"}
+    assert run.meta["file_meta"]["units_from"] == {1: "default"}
+    warnings = " ".join(run.meta["warnings"])
+    assert "wall time" in warnings and "default scaling" in warnings
+    recorded = read_run(runs["log"] / "no_load_1.csv")
+    # in memory against the run file's 9 significant digits; RPDO1 of 6 bytes is speed mode's
+    np.testing.assert_allclose(run["speed_target_rad_s"], recorded["speed_target_rad_s"],
+                               rtol=1e-9, atol=0)
+    told = import_run(path, [], "single", options=ReadOptions(motor=MOTOR, period_s=1e-3))
+    np.testing.assert_allclose(told["position_rad"], recorded["position_rad"], rtol=1e-8, atol=0)
 
 
 def _sdo_download(node: int, index: int, subindex: int, value: int, size: int) -> can.Message:
@@ -182,8 +202,7 @@ def test_a_two_drive_run_reads_back_as_a_reducer_run(tmp_path: Path) -> None:
         record = StandController(bus).run_experiment(experiment, tmp_path).runs[0]
     assert record.complete and record.path is not None and record.trace_path is not None
     back = tmp_path / "back.csv"
-    assert main(["import", record.trace_path, "-o", str(back), "--kind", "reducer",
-                 "--motor", MOTOR, "--period", str(record.period_s)]) == 0
+    assert main(["import", record.trace_path, "-o", str(back), "--kind", "reducer"]) == 0
     recorded, decoded = read_run(record.path, "reducer"), read_run(back, "reducer")
     assert sorted(decoded.columns) == sorted(recorded.columns)
     for name in recorded.columns:
