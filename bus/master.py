@@ -34,7 +34,7 @@ from bus.cia301 import (
 )
 from bus.drive import SDO_TIMEOUT_S, Drive, DriveConfig
 from bus.heartbeat import HEARTBEAT_CONSUMER_FACTOR, Supervisor
-from bus.run_loop import ChunkCallback, ProgressCallback, RunLoop
+from bus.run_loop import ChunkCallback, ProgressCallback, RunLoop, sync_cycles
 from bus.sampler import Samples
 from bus.sync import (
     SYNC_COUNTER_OVERFLOW,
@@ -43,7 +43,7 @@ from bus.sync import (
     SyncWatch,
     check_time_mode,
 )
-from bus.trace import MasterNetwork, Trace
+from bus.trace import MasterNetwork
 from stand.errors import BusError, BusTimeout, InputError, StandError
 
 log = logging.getLogger(__name__)
@@ -59,8 +59,6 @@ PDO_TIMEOUT_S = 2.0
 #: Stand time the drives spend in quick stop after a run before they are disabled, s.
 STOP_RAMP_S = 0.1
 SYNC_PRODUCERS = ("auto", "kernel", "python")
-#: Longest wait for the bus to hand back the last SYNC of the stop cycles, s.
-ECHO_TIMEOUT_S = 0.5
 #: Interfaces that hand the sender its own frames back with their bus stamp when asked
 #: (``receive_own_messages``); the master takes each SYNC's time on the bus from the echo.
 ECHO_INTERFACES = ("socketcan", "virtual")
@@ -132,8 +130,6 @@ class Master:
         self.quick_stop_wall_s: float | None = None
         #: Windows of the last run whose targets left after their (kernel's) SYNC.
         self.late_target_windows: list[int] = []
-        #: The trace being written (from :meth:`setup` or :meth:`run` to the run's end).
-        self._trace: Trace | None = None
 
     # -- setup -----------------------------------------------------------------------------
     def _forget_drives(self) -> None:
@@ -167,11 +163,13 @@ class Master:
         ids = [d.node_id for d in drives]
         if len(set(ids)) != len(ids):
             raise InputError(f"node ids must differ, got {ids}")
-        self._start_trace(trace_path)
+        self.network.end_trace()
+        if trace_path is not None:
+            self.network.start_trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ())
         try:
             self._configure(drives, period_s, added_inertia_kgm2, window_us)
         except BaseException:
-            self._end_trace()
+            self.network.end_trace()
             raise
 
     def _configure(self, drives: Sequence[DriveConfig], period_s: float,
@@ -266,36 +264,7 @@ class Master:
     def _stop_cycles(self) -> None:
         """SYNCs with quick-stop RPDOs for ``STOP_RAMP_S``: a synchronous RPDO acts at the
         next SYNC (and the drives brake meanwhile)."""
-        self._sync_cycles(max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
-
-    def _sync_cycles(self, cycles: int) -> None:
-        """``cycles`` SYNCs, each after the drives' RPDOs; where the bus hands the SYNCs back,
-        return once the last came back (so a trace being written holds it)."""
-        counter = self.sync_counter
-        last = threading.Event()
-        data = b""
-
-        def on_sync(can_id: int, echoed: bytearray, timestamp: float) -> None:
-            if bytes(echoed) == data:
-                last.set()
-
-        if self.sync_echo:
-            self.network.subscribe(SYNC_COB_ID, on_sync)
-        try:
-            for k in range(cycles):
-                for d in self.drives:
-                    if d.rpdo is not None:
-                        self.network.send_message(d.rpdo_cob_id, d.rpdo_data(d.controlword, 0.0))
-                value, frame = counter.next()
-                if k == cycles - 1:
-                    data = frame
-                self.network.send_message(SYNC_COB_ID, frame)
-                time.sleep(0 if self.time_mode == "lockstep" else self.period_s)
-            if self.sync_echo and cycles:
-                last.wait(ECHO_TIMEOUT_S)
-        finally:
-            if self.sync_echo:
-                self.network.unsubscribe(SYNC_COB_ID, on_sync)
+        sync_cycles(self, max(1, int(round(STOP_RAMP_S / self.period_s))) if self.period_s else 0)
 
     # -- the run ---------------------------------------------------------------------------
     @property
@@ -324,14 +293,15 @@ class Master:
             raise InputError(f"targets: {len(self.drives)} drive(s) set up, got {targets.shape[0]} rows")
         if not self.drives or any(d.rpdo is None for d in self.drives):
             raise InputError("call setup() before run()")
-        if trace_path is not None and self._trace is not None and Path(trace_path) != self._trace.path:
-            raise InputError(f"trace_path {trace_path}: setup() started the trace {self._trace.path}; "
+        tracing = self.network.trace
+        if trace_path is not None and tracing is not None and Path(trace_path) != tracing.path:
+            raise InputError(f"trace_path {trace_path}: setup() started the trace {tracing.path}; "
                              "give run() the same file or none")
         self._set_sync_window(time_mode)  # in case setup() was told another time mode
         loop = RunLoop(self, targets, time_mode)
-        if self._trace is None:
-            self._start_trace(trace_path)
-        trace = self._trace
+        trace = tracing
+        if trace is None and trace_path is not None:
+            trace = self.network.start_trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ())
         self._sync_watch = loop.watch
         self.supervisor.expect_operational([d.id for d in self.drives])
         self._run_thread, self._stop_done = threading.get_ident(), threading.Event()
@@ -357,7 +327,7 @@ class Master:
                 aborted = "stop requested"
         finally:
             self._stop_done.set()
-            self._end_trace()
+            self.network.end_trace()
         samples = loop.samples(aborted, error, trace)
         self.late_target_windows = loop.late_target_windows
         for d, ds in zip(self.drives, samples.drives, strict=True):
@@ -390,29 +360,9 @@ class Master:
                 "running": self.running, "time_mode": self.time_mode, "period_s": self.period_s,
                 "window": self.window, "nodes": nodes}
 
-    # -- the trace -------------------------------------------------------------------------
-    def _start_trace(self, path: str | Path | None) -> None:
-        """Log every frame on the bus to ``path`` from now on (none: no trace)."""
-        self._end_trace()
-        if path is None:
-            return
-        trace = Trace(path, (SYNC_COB_ID,) if self.sync_echo else ())
-        assert self.network.notifier is not None
-        self.network.notifier.add_listener(trace)
-        self.network.trace = self._trace = trace
-
-    def _end_trace(self) -> None:
-        """Close the trace being written, if any."""
-        trace, self._trace = self._trace, None
-        if trace is not None:
-            self.network.trace = None
-            if self.network.notifier is not None:
-                self.network.notifier.remove_listener(trace)
-            trace.stop()
-
     def close(self) -> None:
         """Stop the reader thread and shut the bus down (drives are left as they are)."""
-        self._end_trace()
+        self.network.end_trace()
         self._forget_drives()
         self.network.disconnect()
 

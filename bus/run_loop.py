@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 
 #: Longest single wait, so heartbeats and stop requests are checked while waiting, s.
 POLL_S = 0.01
+#: Longest wait for the bus to hand back the last SYNC of :func:`sync_cycles`, s.
+ECHO_TIMEOUT_S = 0.5
 #: A run aborts when a drive's TPDOs are missing for this many SYNCs in a row (lockstep:
 #: each window waited ``pdo_timeout_s``; real time: at least ``pdo_timeout_s`` of SYNCs).
 MISSING_PDO_SYNCS = 3
@@ -214,6 +216,38 @@ class RunLoop:
         if trace is not None and trace.error is not None:  # also a failure flushing at the end
             samples.meta["trace_error"] = str(trace.error)
         return samples
+
+
+def sync_cycles(master: Master, cycles: int) -> None:
+    """``cycles`` SYNCs outside a run, each after the drives' RPDOs with their present
+    controlword and a zero target (a synchronous RPDO acts only at the next SYNC: the stop
+    cycles after a quick stop). Where the bus hands the SYNCs back, it returns once the last
+    came back (so a trace being written holds it)."""
+    network, counter = master.network, master.sync_counter
+    last = threading.Event()
+    data = b""
+
+    def on_sync(can_id: int, echoed: bytearray, timestamp: float) -> None:
+        if bytes(echoed) == data:
+            last.set()
+
+    if master.sync_echo:
+        network.subscribe(SYNC_COB_ID, on_sync)
+    try:
+        for k in range(cycles):
+            for d in master.drives:
+                if d.rpdo is not None:
+                    network.send_message(d.rpdo_cob_id, d.rpdo_data(d.controlword, 0.0))
+            value, frame = counter.next()
+            if k == cycles - 1:
+                data = frame
+            network.send_message(SYNC_COB_ID, frame)
+            time.sleep(0 if master.time_mode == "lockstep" else master.period_s)
+        if master.sync_echo and cycles:
+            last.wait(ECHO_TIMEOUT_S)
+    finally:
+        if master.sync_echo:
+            network.unsubscribe(SYNC_COB_ID, on_sync)
 
 
 def _raw_targets(drive: Drive, values: np.ndarray) -> list[int]:

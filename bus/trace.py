@@ -87,8 +87,26 @@ class Trace(can.Listener):
 class MasterNetwork(canopen.Network):
     """A canopen network that also logs the frames it sends to the run's trace."""
 
+    #: The trace being written: every frame the bus hands on, and every frame sent.
     trace: Trace | None = None
     channel: str | None = None
+
+    def start_trace(self, path: str | Path, echoed: tuple[int, ...] = ()) -> Trace:
+        """Write every frame to the trace ``path`` from now on (see :class:`Trace`)."""
+        self.end_trace()
+        trace = Trace(path, echoed)
+        assert self.notifier is not None, "connect the network first"
+        self.notifier.add_listener(trace)
+        self.trace = trace
+        return trace
+
+    def end_trace(self) -> None:
+        """Close the trace being written, if any (its last frames are flushed)."""
+        trace, self.trace = self.trace, None
+        if trace is not None:
+            if self.notifier is not None:
+                self.notifier.remove_listener(trace)
+            trace.stop()
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
         if not self.bus:
