@@ -25,7 +25,9 @@ changes sign with it and ``Δi`` holds twice its torque: such steps are left out
 warning says how many. So are steps where the output motor's load turns with the
 output shaft (a load of one sign on an input that reverses): there the output motor
 drives the reducer, power flows backwards, and the ratio of eq. 18 is the inverse of
-the back-driving efficiency, which in a real reducer differs from the forward one.
+the back-driving efficiency, which in a real reducer differs from the forward one. A
+shaft turns one way on a plateau when its reading never goes back by more than an
+encoder's dither (``DITHER_COUNTS`` counts of the run's own encoder step).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import numpy as np
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
+from stand.diagnosis.signals import quantization_step
 from stand.errors import InputError, NotExcitedError
 from stand.ident.noise import noise_sigma
 from stand.jsonable import JsonResult
@@ -53,6 +56,10 @@ MIN_PLATEAU_SAMPLES = 8
 MIN_STEPS = 3
 #: Two-sided confidence level of ``efficiency_ci95``.
 CONFIDENCE = 0.95
+#: Encoder counts a shaft's reading may go back against its travel within a plateau: a
+#: reading that flips to the neighbouring count on either side of the true one spans two
+#: counts. Counts are the run's own encoder step (:func:`quantization_step`).
+DITHER_COUNTS = 2
 
 
 @dataclass(frozen=True)
@@ -166,7 +173,9 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
     level_in, se_in = np.array([_level(i_in[p]) for p in plateaus]).T
     level_out, se_out = np.array([_level(i_out[p]) for p in plateaus]).T
     step_in, step_out = np.diff(level_in), np.diff(level_out)
-    direction = np.array([_direction(run["position_in_rad"][p]) for p in plateaus])
+    position_in = run["position_in_rad"]
+    dither_in = _dither_rad(position_in)
+    direction = np.array([_direction(position_in[p], dither_in) for p in plateaus])
     same_way = (direction[:-1] == direction[1:]) & (direction[1:] != 0)
     forward = _brakes(level_out, run["position_out_rad"], plateaus)
     kept = np.flatnonzero(same_way & forward)
@@ -227,22 +236,30 @@ def _brakes(level_out: np.ndarray, position_out: np.ndarray, plateaus: list[slic
     loaded side (the plateau of larger output current): its current opposes the output's
     travel, so the reducer drives the load (power flows forwards, as eq. 18 assumes).
     The output's own travel decides (a reducer may reverse the direction)."""
-    out_dir = np.array([_direction(position_out[p]) for p in plateaus])
+    dither = _dither_rad(position_out)
+    out_dir = np.array([_direction(position_out[p], dither) for p in plateaus])
     loaded = np.where(np.abs(level_out[1:]) >= np.abs(level_out[:-1]),
                       np.arange(1, len(level_out)), np.arange(len(level_out) - 1))
     return np.asarray(np.sign(level_out[loaded]) * out_dir[loaded] < 0)
 
 
-def _direction(position: np.ndarray) -> int:
+def _direction(position: np.ndarray, dither_rad: float) -> int:
     """Sign of the travel over the settled part of a plateau: ``+1`` or ``−1`` when the
-    shaft turns that way throughout it, 0 when it stands or turns both ways (a plateau
-    that holds a reversal: its mean current mixes the frictions of both directions)."""
+    shaft turns that way throughout it, its reading never going back by more than
+    ``dither_rad`` (an encoder flipping between neighbouring counts); 0 when it stands
+    (travels no more than that) or turns both ways (a plateau that holds a reversal: its
+    mean current mixes the frictions of both directions)."""
     settled = position[int(np.ceil(SETTLE_FRACTION * len(position))):]
-    travel = np.diff(settled)
-    if travel.size == 0 or not np.any(travel):
+    if settled.size < 2 or abs(settled[-1] - settled[0]) <= dither_rad:
         return 0
-    if np.all(travel >= 0):
-        return 1
-    if np.all(travel <= 0):
-        return -1
-    return 0
+    sign = 1 if settled[-1] > settled[0] else -1
+    along = sign * settled
+    went_back = float(np.max(np.maximum.accumulate(along) - along))
+    return sign if went_back <= dither_rad else 0
+
+
+def _dither_rad(position: np.ndarray) -> float:
+    """How far, rad, a reading of ``position``'s encoder may go back: ``DITHER_COUNTS``
+    counts, and half a count more, as readings on the count grid differ by whole counts
+    up to their rounding (0 for a position that is not quantized)."""
+    return (DITHER_COUNTS + 0.5) * quantization_step(position)

@@ -129,3 +129,43 @@ def test_steps_with_power_flowing_backwards_are_left_out() -> None:
     assert r.steps == 2
     assert abs(r.efficiency - 0.8) < 0.005
     assert any("power flows backwards" in w for w in r.warnings)
+
+
+#: A 2500-line encoder read 4x, rad a count.
+COUNT_RAD = 2 * np.pi / 10_000
+
+
+def _read_by_dithering_encoder(true_rad: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Each reading is the true count or one of its neighbours at random: it dithers by
+    up to two counts between samples."""
+    return (np.floor(true_rad / COUNT_RAD) + rng.integers(-1, 2, len(true_rad))) * COUNT_RAD
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_an_encoder_that_dithers_by_a_count_or_two_keeps_the_steps(seed: int) -> None:
+    # A slow input (0.3 counts a sample; its output 11 times slower) read by dithering
+    # encoders: the shaft still turns one way on every plateau, so all 3 steps count.
+    rng = np.random.default_rng(seed)
+    run = _synthetic(0.05, 0.5, 0.0)
+    slow_in = np.arange(len(run)) * 0.3 * COUNT_RAD
+    dithered = check_columns({**run.columns,
+                              "position_in_rad": _read_by_dithering_encoder(slow_in, rng),
+                              "position_out_rad": _read_by_dithering_encoder(slow_in / 11, rng)},
+                             "reducer", "dithering")
+    assert np.any(np.diff(dithered["position_in_rad"]) < 0)  # it does go back
+    r = efficiency(dithered, 10.0, 0.05, 0.04)
+    assert r.steps == 3 and not r.warnings
+    assert_allclose(r.efficiency, 0.8, rtol=1e-12)
+
+
+def test_a_dithering_encoder_on_a_standing_shaft_is_no_direction() -> None:
+    # The same dither on a shaft that stands: no plateau has a direction, no step counts.
+    rng = np.random.default_rng(0)
+    run = _synthetic(0.05, 0.5, 0.0)
+    standing = np.full(len(run), 100.5 * COUNT_RAD)
+    still = check_columns({**run.columns,
+                           "position_in_rad": _read_by_dithering_encoder(standing, rng),
+                           "position_out_rad": _read_by_dithering_encoder(standing, rng)},
+                          "reducer", "standing")
+    with pytest.raises(NotExcitedError, match="no load step with the input turning the same way"):
+        efficiency(still, 10.0, 0.05, 0.04)
