@@ -27,17 +27,15 @@ The SYNC period is the communication cycle period 0x1006 written over SDO when t
 has it, else the one given, else the median spacing of the SYNC stamps (which is wall time,
 not stand time, for a lockstep run: the result warns).
 
-:func:`decode_dbc` decodes every frame a DBC describes with cantools, one variable per
-signal (``Message.Signal``) and its times (``Message.t``, s from the first frame).
+Any frame a DBC describes: :func:`bus.dbc.decode_dbc`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
 
 import can
 import canopen
@@ -117,27 +115,37 @@ def _default(od: canopen.ObjectDictionary, index: int, subindex: int) -> int:
         return 0
 
 
-def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
-           seen: set[int]) -> Iterator[tuple[int, Layout]]:
-    """(COB-ID, layout) of each TPDO of ``node`` whose COB-ID occurs in the trace."""
-    standard = tpdo_objects(od)
-    # The simulated drive's EDS holds CiA 402's power-on mapping, which the motorstand
-    # master always replaces: for it, the master's mapping is the better guess.
+def _mapped(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
+            seen: Collection[int], comm_base: int, map_base: int, cob_bases: Sequence[int]
+            ) -> Iterator[tuple[int, int, list[int] | None]]:
+    """(PDO number, COB-ID, mapping entries) of each PDO of ``node`` (TPDOs or RPDOs, by the
+    object and COB-ID bases) whose COB-ID occurs in the trace: the entries as the trace's SDO
+    traffic wrote them, else the EDS's defaults, else None. The simulated drive's EDS holds
+    CiA 402's power-on mapping, which motorstand's master always replaces: for it, None."""
     ours = _is_simulated_eds(od)
-    for p in range(len(TPDO_BASES)):
-        comm, mapping = TPDO_COMM + p, TPDO_MAP + p
-        cob = sdo.get((comm, 1), _default(od, comm, 1) or TPDO_BASES[p] + node)
+    for p, base in enumerate(cob_bases):
+        comm, mapping = comm_base + p, map_base + p
+        cob = sdo.get((comm, 1), _default(od, comm, 1) or base + node)
         if cob & COB_ID_INVALID or (cob & 0x7FF) not in seen:
             continue
+        entries: list[int] | None = None
         if (mapping, 0) in sdo:
             entries = [sdo.get((mapping, k), 0) for k in range(1, sdo[(mapping, 0)] + 1)]
         elif _default(od, mapping, 0) and not ours:
             entries = [_default(od, mapping, k) for k in range(1, _default(od, mapping, 0) + 1)]
-        elif p < len(standard):
-            entries = entries_for(od, standard[p])
-        else:
+        yield p, cob & 0x7FF, entries
+
+
+def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
+           seen: set[int]) -> Iterator[tuple[int, Layout]]:
+    """(COB-ID, layout) of each TPDO of ``node`` whose COB-ID occurs in the trace; where
+    neither the trace nor the EDS maps it, the mapping motorstand's master writes."""
+    standard = tpdo_objects(od)
+    for p, cob, entries in _mapped(node, od, sdo, seen, TPDO_COMM, TPDO_MAP, TPDO_BASES):
+        if entries is None and p >= len(standard):
             continue
-        yield cob & 0x7FF, Layout.from_entries(od, entries)
+        yield cob, Layout.from_entries(od, entries if entries is not None
+                                       else entries_for(od, standard[p]))
 
 
 def _targets(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
@@ -148,28 +156,23 @@ def _targets(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, in
     the target of the one mode whose PDO has the length of the frames, ``lengths``: COB-ID →
     bytes of its first frame)."""
     ours = _is_simulated_eds(od)
-    for p in range(len(RPDO_BASES)):
-        comm, mapping = RPDO_COMMUNICATION + p, RPDO_MAPPING + p
-        cob = sdo.get((comm, 1), _default(od, comm, 1) or RPDO_BASES[p] + node)
-        if cob & COB_ID_INVALID or (cob & 0x7FF) not in lengths:
-            continue
-        if (mapping, 0) in sdo:
-            layouts = [[sdo.get((mapping, k), 0) for k in range(1, sdo[(mapping, 0)] + 1)]]
-        elif _default(od, mapping, 0) and not ours:
-            layouts = [[_default(od, mapping, k) for k in range(1, _default(od, mapping, 0) + 1)]]
+    for p, cob, entries in _mapped(node, od, sdo, lengths, RPDO_COMMUNICATION, RPDO_MAPPING,
+                                   RPDO_BASES):
+        if entries is not None:
+            candidates = [entries]
         elif p == 0 and ours:
-            layouts = [entries_for(od, [cia402.CONTROLWORD, index])
-                       for index, _, _ in cia402.TARGET_OBJECT.values() if index in od]
+            candidates = [entries_for(od, [cia402.CONTROLWORD, index])
+                          for index, _, _ in cia402.TARGET_OBJECT.values() if index in od]
         else:
             continue
-        fitting = [layout for layout in (Layout.from_entries(od, e) for e in layouts)
-                   if len(layouts) == 1 or layout.packer.size == lengths[cob & 0x7FF]]
+        fitting = [layout for layout in (Layout.from_entries(od, e) for e in candidates)
+                   if len(candidates) == 1 or layout.packer.size == lengths[cob]]
         if len(fitting) != 1:
             continue
         layout = fitting[0]
         for index in layout.indices:
             if index in TARGET_FIELDS:
-                yield cob & 0x7FF, index, layout
+                yield cob, index, layout
                 break
 
 
@@ -352,53 +355,4 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     return DecodedTrace(samples, period, period_from, mapping_from, warnings, units_from)
 
 
-def decode_dbc(path: str | Path, dbc: str | Path) -> dict[str, np.ndarray]:
-    """Every signal of the frames of trace ``path`` that the DBC ``dbc`` describes.
-
-    Returns ``{"Message.Signal": values, "Message.t": times_s}`` (times from the trace's
-    first frame, s); a signal name found in one message only is also given bare.
-
-    Raises
-    ------
-    InputError
-        An unreadable trace or DBC, or a trace with no frame the DBC knows.
-    """
-    import cantools
-
-    try:
-        database = cantools.database.load_file(str(dbc))
-    except (OSError, cantools.database.UnsupportedDatabaseFormatError) as exc:
-        raise InputError(f"{dbc}: not a readable DBC file ({exc})") from exc
-    if not isinstance(database, cantools.database.can.Database):
-        raise InputError(f"{dbc}: a diagnostics database, not a CAN database (DBC, ARXML, KCD, SYM)")
-    frames = read_frames(path)
-    t0 = frames[0].timestamp
-    columns: dict[str, list[float]] = {}
-    for msg in frames:
-        try:
-            message = database.get_message_by_frame_id(msg.arbitration_id)
-        except KeyError:
-            continue
-        try:
-            decoded = cast(dict[str, float], message.decode(bytes(msg.data), decode_choices=False))
-        except (cantools.database.DecodeError, ValueError) as exc:
-            raise InputError(f"{path}: frame 0x{msg.arbitration_id:X} at {msg.timestamp:.6f} s "
-                             f"does not decode as {message.name}: {exc}") from exc
-        columns.setdefault(f"{message.name}.t", []).append(msg.timestamp - t0)
-        for name, value in decoded.items():
-            columns.setdefault(f"{message.name}.{name}", []).append(float(value))
-    if not columns:
-        raise InputError(f"{path}: no frame of the trace is described by {dbc}")
-    variables = {name: np.asarray(values) for name, values in columns.items()}
-    bare: dict[str, list[str]] = {}
-    for name in variables:
-        _, _, signal = name.partition(".")
-        if signal != "t":
-            bare.setdefault(signal, []).append(name)
-    for signal, names in bare.items():
-        if len(names) == 1 and signal not in variables:
-            variables[signal] = variables[names[0]]
-    return variables
-
-
-__all__ = ["DecodedTrace", "decode_dbc", "decode_trace", "read_frames", "sdo_values"]
+__all__ = ["DecodedTrace", "decode_trace", "read_frames", "sdo_values"]
