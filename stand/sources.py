@@ -109,8 +109,9 @@ def _mat_variables(path: Path) -> dict[str, np.ndarray]:
 
 
 def _trace(path: Path, options: ReadOptions) -> Source:
+    from bus.dbc import decode_dbc
     from bus.simstand import scaling_for
-    from bus.tracereader import decode_dbc, decode_trace
+    from bus.tracereader import decode_trace
     from stand.controller import run_columns
     from stand.profiles import load_motor
 

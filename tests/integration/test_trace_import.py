@@ -18,10 +18,11 @@ from numpy.testing import assert_array_equal
 
 from bus import cia402
 from bus.adapters import BusConfig
+from bus.dbc import decode_dbc
 from bus.eds import VELOCITY_UNIT_RAD_S
 from bus.simstand import scaling_for
 from bus.stand_bus import StandBus
-from bus.tracereader import decode_dbc, decode_trace, sdo_values
+from bus.tracereader import decode_trace, sdo_values
 from stand.cli import main
 from stand.controller import ExperimentProfile, StandController, plan
 from stand.errors import InputError
