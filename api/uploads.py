@@ -18,6 +18,9 @@ import asyncio
 import contextlib
 import json
 import multiprocessing
+import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, get_args, get_origin
@@ -38,6 +41,26 @@ from stand.storage import Storage
 READ_BLOCK_BYTES = 1 << 20
 #: Uploads parsed at once (see the module docstring).
 PARSE_LANES = 1
+#: How often the parsing worker looks whether the service that started it is still there, s.
+SERVICE_WATCH_S = 0.5
+
+
+def _end_with_service(service_pid: int) -> None:
+    """Initializer of the parsing worker: end it once the service is gone.
+
+    After a crash (SIGKILL) nobody sends the pool's shutdown, and the worker, which holds
+    both ends of its task queue, would wait for work forever, keeping the forkserver and
+    the resource tracker alive with it."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(SERVICE_WATCH_S)
+            try:
+                os.kill(service_pid, 0)
+            except (ProcessLookupError, PermissionError):  # gone (or its pid reused)
+                os._exit(0)
+
+    threading.Thread(target=watch, name="watch-service", daemon=True).start()
 
 
 @dataclass
@@ -50,11 +73,13 @@ class ParseLanes:
     # forkserver, not fork: the service has threads (jobs, bus) that a fork would copy
     # mid-flight, locks held and all.
     pool: ProcessPoolExecutor = field(default_factory=lambda: ProcessPoolExecutor(
-        PARSE_LANES, mp_context=multiprocessing.get_context("forkserver")))
+        PARSE_LANES, mp_context=multiprocessing.get_context("forkserver"),
+        initializer=_end_with_service, initargs=(os.getpid(),)))
 
     def close(self) -> None:
-        """Stop the worker process."""
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the worker process and wait for it (queued parses are cancelled), so that
+        no process of the service outlives it."""
+        self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 def parse_lanes() -> ParseLanes:

@@ -12,11 +12,14 @@ from pathlib import Path
 import pytest
 
 from stand.runfile import parse_run
-from tests.integration.test_api_support import serve, start, stop
+from tests.integration.test_api_support import serve, start, stop, wait_for
 
 #: Stand time of the run that gets killed: far longer than the test waits, s.
 LONG_RUN_S = 600.0
 WAIT_S = 60.0
+#: Time the helper processes of a crashed service may take to end: the parsing worker
+#: looks for the service every api.uploads.SERVICE_WATCH_S, and a loaded machine is slow, s.
+HELPERS_END_S = 10.0
 
 
 def test_sigkill_mid_run_keeps_everything(tmp_path: Path) -> None:
@@ -36,8 +39,14 @@ def test_sigkill_mid_run_keeps_everything(tmp_path: Path) -> None:
             while (seen := c.get(f"/runs/{long_id}").json())["samples"] < 2000:
                 assert time.monotonic() < deadline, "the long run recorded nothing"
                 time.sleep(0.05)
+            # An upload starts the parsing worker (through a forkserver).
+            assert c.post("/runs/upload", files={"file": ("up.csv", before_csv)}).status_code == 201
+            assert server.helpers(), "the upload started no parsing worker"
         server.kill()
         assert server.process.returncode == -9
+        # Nobody tells the service's helper processes that it is gone: they must notice.
+        wait_for(lambda: not server.helpers(), HELPERS_END_S, "the crashed service's helper "
+                 "processes (upload parser, forkserver, resource tracker) ending")
     finally:
         stop(server)
 

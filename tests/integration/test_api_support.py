@@ -1,10 +1,14 @@
 """A real ``stand serve`` (uvicorn) in a subprocess on a free loopback port, for the API tests.
 
-Not a test module of its own: the API tests import :func:`serve` from here.
+Not a test module of its own: the API tests import :func:`serve` from here. Each server
+leads its own process group, so the processes it starts (the upload parser's forkserver
+and worker, a batch's Dask cluster) can be found, and :func:`stop` ends whatever of them
+outlives it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import resource
 import signal
@@ -45,6 +49,25 @@ class Server:
         """SIGKILL: no shutdown, no cleanup, as a crash."""
         self.process.send_signal(signal.SIGKILL)
         self.process.wait(10)
+
+    def helpers(self) -> list[int]:
+        """The processes the server started that are still there (its process group)."""
+        return [pid for pid in _process_group(self.process.pid) if pid != self.process.pid]
+
+
+def _process_group(pgid: int) -> list[int]:
+    """The live processes (not zombies) of process group ``pgid``."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:  # ended meanwhile
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            members.append(int(entry.name))
+    return members
 
     def log(self) -> str:
         return self.log_path.read_text(errors="replace")
@@ -92,7 +115,7 @@ def start(data_dir: Path, api_key: str | None = "test-key", extra_env: dict[str,
         process = subprocess.Popen(
             [sys.executable, "-m", "stand", "serve", "--host", "127.0.0.1", "--port", str(port),
              "--log-level", "warning"], cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
-            preexec_fn=limit_files if file_size_limit is not None else None)
+            preexec_fn=limit_files if file_size_limit is not None else None, start_new_session=True)
     server = Server(f"http://127.0.0.1:{port}", api_key, data_dir, process, log_path)
     deadline = time.monotonic() + START_TIMEOUT_S
     while time.monotonic() < deadline:
@@ -109,13 +132,17 @@ def start(data_dir: Path, api_key: str | None = "test-key", extra_env: dict[str,
 
 
 def stop(server: Server) -> None:
-    """SIGTERM and wait (graceful shutdown); SIGKILL if it hangs."""
+    """SIGTERM and wait (graceful shutdown); SIGKILL if it hangs. Then SIGKILL whatever the
+    server started and left behind, so that no test leaves a process after pytest."""
     if server.process.poll() is None:
         server.process.terminate()
         try:
             server.process.wait(15)
         except subprocess.TimeoutExpired:
             server.kill()
+    for pid in server.helpers():
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
 
 
 @contextmanager
