@@ -29,6 +29,8 @@ T = TypeVar("T")
 #: How long the server may take to answer /health after start, s.
 START_TIMEOUT_S = 30.0
 ROOT = Path(__file__).resolve().parents[2]
+#: How long the processes a stopped server left behind may take to end once killed, s.
+HELPERS_END_S = 5.0
 
 
 @dataclass
@@ -143,6 +145,9 @@ def stop(server: Server) -> None:
     for pid in server.helpers():
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
+    deadline = time.monotonic() + HELPERS_END_S
+    while server.helpers() and time.monotonic() < deadline:  # gone, not just told
+        time.sleep(0.05)
 
 
 @contextmanager
