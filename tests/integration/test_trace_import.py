@@ -34,6 +34,9 @@ from stand.sources import ReadOptions
 MOTOR = "crouzet_82800502"
 
 
+#: The run whose trace is read back: one 1 s no-load run (speed mode) at 1 kHz.
+NO_LOAD = ExperimentProfile(name="trace", procedure="no_load", motor=MOTOR, repeats=1,
+                            duration_s=1.0, period_s=1e-3)
 #: Heartbeat period, s: long enough that a loaded machine never starves a heartbeat into an
 #: aborted run (heartbeats are tested in test_bus_faults, not here).
 CALM_HEARTBEAT_S = 1.0
@@ -42,14 +45,12 @@ CALM_HEARTBEAT_S = 1.0
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """One 1 s no-load run on the virtual bus per trace format, as ``stand run`` makes it."""
-    experiment = ExperimentProfile(name="trace", procedure="no_load", motor=MOTOR, duration_s=1.0,
-                                   period_s=1e-3)
     out: dict[str, Path] = {}
     for fmt in ("log", "asc", "blf"):
         folder = tmp_path_factory.mktemp(fmt)
         with StandBus(MOTOR, BusConfig("virtual", f"trace-import-{fmt}"), simulate=True, seed=5,
                       heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
-            record = StandController(bus, trace_suffix=f".{fmt}").run_experiment(experiment, folder).runs[0]
+            record = StandController(bus, trace_suffix=f".{fmt}").run_experiment(NO_LOAD, folder).runs[0]
         assert record.complete and record.trace_path == str(folder / f"no_load_1.{fmt}")
         out[fmt] = folder
     return out
@@ -79,9 +80,7 @@ def test_a_run_reads_back_exactly_from_its_trace(runs: dict[str, Path], fmt: str
 def test_a_speed_run_keeps_the_target_it_was_sent(runs: dict[str, Path]) -> None:
     """The controller writes the speed target of each sample's period as it went over the
     bus (0x60FF in steps of 0.001 rad/s), and the trace's RPDOs give the same back."""
-    experiment = ExperimentProfile(name="trace", procedure="no_load", motor=MOTOR, duration_s=1.0,
-                                   period_s=1e-3)
-    procedure = plan(experiment)[0][0]
+    ((procedure, _),) = plan(NO_LOAD)
     sent = np.array([round(v / VELOCITY_UNIT_RAD_S) for v in procedure.commands[0].values])
     assert procedure.commands[0].mode == "speed" and np.ptp(sent) > 1000  # a varying target
     recorded = read_run(runs["log"] / "no_load_1.csv")
