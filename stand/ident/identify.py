@@ -21,18 +21,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2
+from scipy.stats import t as student_t
 
 from stand.diagnosis.model import ModelSpec
-from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare
+from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare, quantization_step
 from stand.errors import InputError, NotExcitedError
 from stand.ident.checks import effect_params, run_warnings
+from stand.ident.closed_loop import ClosedLoopFit, fit_closed_loop
 from stand.ident.columns import TIMING_COLUMN, Design
 from stand.ident.derivatives import auto_half_width, state_derivatives
-from stand.ident.estimate import Estimate, block_count, solve_blocks
+from stand.ident.estimate import CONFIDENCE, Estimate, block_count, solve_blocks
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
 from stand.ident.select import Fitter, model_variance, parse_effects, select
-from stand.ident.speed_loop import speed_loop
+from stand.ident.speed_loop import TARGET_COLUMN, SpeedLoop, speed_loop
 from stand.jsonable import JsonResult
 from stand.runfile import Run
 
@@ -262,8 +264,6 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     loop = speed_loop(run)
     if loop is not None and loop.holds:
         currents.append((loop.period_current - no_load_current_A, 0.0))
-    elif loop is not None:
-        warnings.append(loop.message)
     fits = []
     for current, known_timing in currents:
         design = Design.build(replace(sig, current=current, cache={}), h,
@@ -281,8 +281,17 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     spec, est = chosen.spec, chosen.estimate
     if estimator == "auto":
         estimator, spec, est = _pick_estimator(design, spec, est, run.source)
-    est = est.with_variance("current", model_variance(fitter, chosen))
-    if loop is not None and loop.holds:
+    spread = model_variance(fitter, chosen)
+    est = est.with_variance("current", spread)
+    refined = _closed_loop(run, loop, spec, est, sigma) if loop is not None else None
+    if refined is not None and refined.holds:
+        # the effects are the equation error's choice: their models' spread stays
+        est = with_closed_loop(est, refined).with_variance("current", spread)
+    elif loop is not None and not loop.holds:
+        warnings.append(loop.message)
+    elif loop is not None and loop.holds:
+        if refined is not None:
+            warnings.append(refined.message)
         if from_loop:
             # Kt/J scales as 1/kp: kp's relative uncertainty is Kt/J's
             est = est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
@@ -296,6 +305,37 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     timing = spec.delay + current_weight(spec, est)
     return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
                    warnings, estimator, timing)
+
+
+def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
+                 sigma: float) -> ClosedLoopFit | None:
+    """The output-error refinement of a speed-loop run (:mod:`stand.ident.closed_loop`),
+    started from ``est``: where the loop law holds, or where it is refused but the
+    current reaches the drive's limit (which the law alone does not model); else None."""
+    if not (loop.kp > 0 and (loop.holds or loop.saturates)):
+        return None
+    theta = run["position_rad"]
+    names = [name for name in spec.names() if name not in ("current", "one")]
+    start = np.array([est.value(name) for name in names])
+    return fit_closed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s, loop, spec,
+                           est.value("current"), -est.value("omega"), start,
+                           quantization_step(theta), sigma)
+
+
+def with_closed_loop(est: Estimate, fit: ClosedLoopFit) -> Estimate:
+    """``est`` with Kt/J and D/J from the output-error fit: their values, and variances
+    scaled so that ``est``'s t quantile gives the fit's interval (no covariance with the
+    other coefficients, which stay the equation error's)."""
+    beta, cov = est.beta.copy(), est.cov.copy()
+    ratio = (student_t.ppf(0.5 + CONFIDENCE / 2, fit.dof)
+             / student_t.ppf(0.5 + CONFIDENCE / 2, est.dof)) ** 2
+    for name, value, se, sign in (("current", fit.Kt_over_J, fit.Kt_over_J_se, 1.0),
+                                  ("omega", fit.D_over_J, fit.D_over_J_se, -1.0)):
+        k = est.names.index(name)
+        beta[k] = sign * value
+        cov[k, :] = cov[:, k] = 0.0
+        cov[k, k] = se**2 * ratio
+    return replace(est, beta=beta, cov=cov)
 
 
 def current_weight(spec: ModelSpec, est: Estimate) -> float:

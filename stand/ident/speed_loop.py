@@ -92,6 +92,9 @@ class SpeedLoop:
         or an empty array when the law does not hold.
     message : str
         Why nothing was reconstructed, or empty.
+    limit_A : float
+        The drive's current limit where the law reaches it (the period current is
+        clipped there), A; infinite where it does not.
     """
 
     kp: float
@@ -102,6 +105,12 @@ class SpeedLoop:
     kp_rel_sd: float
     period_current: np.ndarray
     message: str = ""
+    limit_A: float = np.inf
+
+    @property
+    def saturates(self) -> bool:
+        """The law reaches the drive's current limit."""
+        return bool(np.isfinite(self.limit_A))
 
     @property
     def holds(self) -> bool:
@@ -217,6 +226,7 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
     saturates = int(np.sum(beyond)) >= MIN_LIMIT_SAMPLES
     if not (kp > 0 and ratio <= MAX_RESIDUAL_RATIO):
         return SpeedLoop(kp, ki, c, delay, ratio, np.inf, np.empty(0),
+                         limit_A=limit if saturates else np.inf, message=
                          f"the PI speed law explains the current only to {ratio:.2g} times its "
                          f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
                          "saturates its voltage or follows another law, so the current between "
@@ -234,7 +244,8 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
     rel_sd = float(np.hypot(np.sqrt(cov[0, 0]) / kp, (kp_other - kp) / kp))
     period = _period_current(theta, target, omega, error_int, dt, kp, ki, c,
                              limit if saturates else np.inf)
-    return SpeedLoop(kp, ki, c, delay, ratio, rel_sd, period)
+    return SpeedLoop(kp, ki, c, delay, ratio, rel_sd, period,
+                     limit_A=limit if saturates else np.inf)
 
 
 def _period_current(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,
