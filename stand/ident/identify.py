@@ -309,10 +309,10 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
 
 def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
                  sigma: float) -> ClosedLoopFit | None:
-    """The output-error refinement of a speed-loop run (:mod:`stand.ident.closed_loop`),
-    started from ``est``: where the loop law holds, or where it is refused but the
-    current reaches the drive's limit (which the law alone does not model); else None."""
-    if not (loop.kp > 0 and (loop.holds or loop.saturates)):
+    """The output-error refinement of a speed-loop run whose loop law holds
+    (:mod:`stand.ident.closed_loop`), started from ``est``; else None (a refused law
+    leaves the simulation no start it can be trusted to reach the loop from)."""
+    if not loop.holds:
         return None
     theta = run["position_rad"]
     names = [name for name in spec.names() if name not in ("current", "one")]
