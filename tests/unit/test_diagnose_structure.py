@@ -19,7 +19,7 @@ from stand.diagnosis.noise import UNEXPLAINED_FACTOR, unexplained
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import FAMILY_ALPHA
 from stand.diagnosis.simulate import segments
-from stand.diagnosis.structure import SHAPES, along_travel_test, structure_test
+from stand.diagnosis.structure import SHAPES, _taken, along_travel_test, structure_test
 from stand.effects import UNEXPLAINED
 from stand.errors import InputError
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
@@ -136,3 +136,17 @@ def test_a_friction_level_that_changes_along_the_travel_is_not_coulombs_approxim
     assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
     assert result.position_structure_p_value is not None
     assert result.position_structure_p_value < FAMILY_ALPHA
+
+
+def test_the_share_a_candidate_takes_equals_least_squares_also_on_collinear_columns() -> None:
+    """The order search's shortcut through the 4 × 4 Gram matrix gives what a least-squares
+    solve on the samples gives, also when ``sign(ω)·sin`` and ``sin`` coincide (a run
+    that never reverses), where the Gram matrix is singular."""
+    rng = np.random.default_rng(5)
+    theta = np.cumsum(rng.standard_normal(5000)) * 0.05
+    left = rng.standard_normal(5000)
+    for sign in (np.sign(rng.standard_normal(5000)), np.ones(5000)):
+        sin, cos = np.sin(0.3 * theta), np.cos(0.3 * theta)
+        x = np.column_stack([sign * sin, sign * cos, sin, cos])
+        coef = np.linalg.lstsq(x, left, rcond=None)[0]
+        assert _taken(x, left) == pytest.approx(float(left @ (x @ coef)), rel=1e-9)
