@@ -40,10 +40,9 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
-from scipy.stats import t as student_t
 
 from stand.diagnosis.model import ModelSpec, periodic_mean
-from stand.ident.estimate import BLOCKS, CONFIDENCE
+from stand.ident.estimate import BLOCKS, t_interval
 from stand.ident.speed_loop import SpeedLoop
 
 #: Start value of the drive's lag τ, s (a current loop of a few kHz).
@@ -105,8 +104,7 @@ class ClosedLoopFit:
 
     def interval(self, value: float, se: float) -> list[float]:
         """95 % interval of ``value`` with standard error ``se``."""
-        half = float(student_t.ppf(0.5 + CONFIDENCE / 2, self.dof)) * se
-        return [value - half, value + half]
+        return t_interval(value, se, self.dof)
 
 
 def effect_inputs(spec: ModelSpec, theta: np.ndarray, period_current: np.ndarray,

@@ -92,9 +92,14 @@ class Estimate:
     def interval(self, name: str, sign: float = 1.0) -> list[float]:
         """95 % interval of ``sign·β[name]``, ``[low, high]``."""
         k = self.names.index(name)
-        half = float(student_t.ppf(0.5 + CONFIDENCE / 2, self.dof)) * float(self.se[k])
-        centre = sign * float(self.beta[k])
-        return [centre - half, centre + half]
+        return t_interval(sign * float(self.beta[k]), float(self.se[k]), self.dof)
+
+
+def t_interval(centre: float, se: float, dof: int) -> list[float]:
+    """The :data:`CONFIDENCE` interval ``[low, high]`` of ``centre`` with standard error
+    ``se``, Student's t with ``dof`` degrees of freedom."""
+    half = float(student_t.ppf(0.5 + CONFIDENCE / 2, dof)) * se
+    return [centre - half, centre + half]
 
 
 def block_count(rows: int, support: int) -> int:
