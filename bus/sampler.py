@@ -51,6 +51,8 @@ class DriveSamples:
     lost: int = 0
     duplicates: int = 0
     late: int = 0
+    #: TPDOs shorter than their mapping (dropped: their samples count as lost).
+    short: int = 0
 
     @property
     def valid(self) -> np.ndarray:
@@ -159,6 +161,7 @@ class Sampler:
         self.received = [np.zeros((p, samples), dtype=bool) for p in pdos]
         self.duplicates = [0] * len(node_ids)
         self.late = [0] * len(node_ids)
+        self.short = [0] * len(node_ids)
         self.node_ids = list(node_ids)
         self.expected = sum(pdos)
         self.wall_s = np.zeros(samples)
@@ -242,6 +245,9 @@ class Sampler:
     def _take(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """Record one TPDO in the open window (the lock is held)."""
         d, p, layout, names = self._plan[can_id]
+        if len(data) < layout.packer.size:
+            self.short[d] += 1  # a foreign or broken frame: its sample is lost, not misread
+            return
         k = self.window
         after = timestamp - (self._opened_stamp or 0.0)
         if k < 0 or -SAME_EPOCH_S < after < 0 or (self.window_s and SAME_EPOCH_S > after > self.window_s):
@@ -288,7 +294,8 @@ class Sampler:
             received = self.received[n][:, :count].copy()
             drives.append(DriveSamples(node_id, columns, received,
                                        lost=int(np.sum(~received)),
-                                       duplicates=self.duplicates[n], late=self.late[n]))
+                                       duplicates=self.duplicates[n], late=self.late[n],
+                                       short=self.short[n]))
         return Samples(self.period_s, count, self.wall_s[:count].copy(),
                        self.sync_counter[:count].copy(), drives, aborted,
                        sync_stamp_s=self.sync_stamp[:count].copy())

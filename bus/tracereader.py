@@ -42,7 +42,15 @@ import canopen
 import numpy as np
 
 from bus import cia402
-from bus.cia301 import RPDO_BASES, RPDO_COMMUNICATION, RPDO_MAPPING
+from bus.cia301 import (
+    COMMUNICATION_CYCLE_PERIOD,
+    RPDO_BASES,
+    RPDO_COMMUNICATION,
+    RPDO_MAPPING,
+    SDO_REQUEST_BASE,
+    SDO_RESPONSE_BASE,
+    TPDO_BASES,
+)
 from bus.device import eds_identity, is_simulated
 from bus.drive import TPDO_COMM, TPDO_MAP, tpdo_objects
 from bus.eds import MA_PER_A, Scaling, load_od
@@ -52,12 +60,6 @@ from bus.sync import SYNC_COB_ID
 from bus.trace import TRACE_SUFFIXES
 from stand.errors import InputError
 
-#: SDO server-to-client and client-to-server COB-ID bases (CiA 301 default connection set).
-SDO_TX, SDO_RX = 0x580, 0x600
-#: TPDO1-4 default COB-ID bases.
-TPDO_BASES = (0x180, 0x280, 0x380, 0x480)
-#: Communication cycle period object (CiA 301), µs.
-CYCLE_PERIOD = 0x1006
 #: SDO command specifiers (CiA 301 §7.2.4.3), from canopen.
 _CCS_DOWNLOAD = canopen.sdo.constants.REQUEST_DOWNLOAD >> 5
 _CCS_UPLOAD = canopen.sdo.constants.REQUEST_UPLOAD >> 5
@@ -99,7 +101,8 @@ def sdo_values(frames: list[can.Message]) -> dict[int, dict[tuple[int, int], int
         base, node = can_id & 0x780, can_id & 0x7F
         command = data[0]
         expedited = command & canopen.sdo.constants.EXPEDITED
-        if not expedited or (base, command >> 5) not in ((SDO_RX, _CCS_DOWNLOAD), (SDO_TX, _SCS_UPLOAD)):
+        if not expedited or (base, command >> 5) not in ((SDO_REQUEST_BASE, _CCS_DOWNLOAD),
+                                                         (SDO_RESPONSE_BASE, _SCS_UPLOAD)):
             continue
         size = 4 - ((command >> 2) & 0x3) if command & canopen.sdo.constants.SIZE_SPECIFIED else 4
         key = (int.from_bytes(data[1:3], "little"), data[3])
@@ -291,7 +294,8 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
         raise InputError(f"{path}: no TPDO of {'node ' + str(node) if node else 'any node'} "
                          f"in the trace (COB-IDs seen: {', '.join(f'0x{c:03X}' for c in sorted(seen))})")
     warnings: list[str] = []
-    cycles = [v[(CYCLE_PERIOD, 0)] for v in sdo.values() if v.get((CYCLE_PERIOD, 0))]
+    cycles = [v[(COMMUNICATION_CYCLE_PERIOD, 0)] for v in sdo.values()
+              if v.get((COMMUNICATION_CYCLE_PERIOD, 0))]
     if cycles:
         period, period_from = cycles[-1] * 1e-6, "sdo 0x1006"
     elif period_s is not None:
@@ -349,6 +353,10 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
                 del drive.columns[name]
                 warnings.append(f"node {drive.node_id}: SYNCs before its first RPDO; its "
                                 f"{name} is left out")
+    for drive in samples.drives:
+        if drive.short:
+            warnings.append(f"node {drive.node_id}: {drive.short} TPDOs shorter than their "
+                            "mapping; those samples are left out")
     if not samples.complete:
         warnings.append(f"TPDOs missing in the trace: {samples.lost} (node: count); those "
                         "samples are left out")

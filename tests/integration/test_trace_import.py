@@ -113,6 +113,32 @@ def test_a_trace_without_the_setup_decodes_with_the_masters_mapping_and_warns(
     np.testing.assert_allclose(told["position_rad"], recorded["position_rad"], rtol=1e-8, atol=0)
 
 
+def test_short_tpdos_are_left_out_with_a_warning_not_misread(runs: dict[str, Path],
+                                                            tmp_path: Path) -> None:
+    """A TPDO shorter than its mapping (a foreign drive's or a broken frame) is not unpacked
+    into garbage nor a crash: its sample is left out like a lost one, and the import says
+    how many there were."""
+    path = tmp_path / "short.log"
+    cut = set()
+    with can.Logger(str(path)) as logger:
+        for n, msg in enumerate(can.LogReader(str(runs["log"] / "no_load_1.log"))):
+            if msg.arbitration_id == 0x181 and len(cut) < 3 and n % 7 == 0:
+                msg = can.Message(timestamp=msg.timestamp, arbitration_id=0x181,
+                                  is_extended_id=False, data=bytes(msg.data)[:2])
+                cut.add(n)
+            logger.on_message_received(msg)
+    assert len(cut) == 3
+    decoded = decode_trace(path)
+    (drive,) = decoded.samples.drives
+    assert drive.short == 3 and drive.lost == 3
+    assert "node 1: 3 TPDOs shorter than their mapping" in " ".join(decoded.warnings)
+    recorded = read_run(runs["log"] / "no_load_1.csv")
+    np.testing.assert_allclose(drive.columns["position_rad"][drive.valid],  # the CSV's 9 digits
+                               recorded["position_rad"][drive.valid], rtol=1e-8, atol=1e-12)
+    with pytest.raises(InputError, match="uniform"):  # a run with gaps is no run file
+        import_run(path, [], "single")
+
+
 def _sdo_download(node: int, index: int, subindex: int, value: int, size: int) -> can.Message:
     command = 0x23 | ((4 - size) << 2)  # expedited download, size indicated
     data = bytes([command]) + index.to_bytes(2, "little") + bytes([subindex]) \
