@@ -22,7 +22,8 @@ from api.origin import LoopbackOnly
 from api.routers import analysis, batch, health, profiles, results, runs, stand
 from api.uploads import parse_lanes
 from stand.datadir import DataDirLock
-from stand.jobs import SIMULATED_MASTER_OPTIONS, ControllerRunner, JobManager, StandRunner
+from stand.jobs import JobManager
+from stand.runner import SIMULATED_MASTER_OPTIONS, ControllerRunner, StandRunner
 from stand.settings import Settings, get_settings
 from stand.storage import Storage
 

@@ -64,7 +64,7 @@ class RunOverrides(_Body):
 
     The motor and stand are not here: their profiles hold the limits. Every command is
     still checked against those limits before anything moves, and a run of more than
-    ``stand.jobs.MAX_RUN_SAMPLES`` samples (duration_s / period_s) is refused before it
+    ``stand.runner.MAX_RUN_SAMPLES`` samples (duration_s / period_s) is refused before it
     is planned.
     """
 

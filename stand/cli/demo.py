@@ -18,8 +18,8 @@ from typing import Any
 
 from stand.cli import options
 from stand.errors import InputError
-from stand.jobs import SIMULATED_MASTER_OPTIONS
 from stand.jsonable import to_jsonable
+from stand.runner import SIMULATED_MASTER_OPTIONS
 from stand.settings import get_settings
 
 log = logging.getLogger("stand")

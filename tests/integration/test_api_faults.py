@@ -22,8 +22,9 @@ import pytest
 
 from stand.datadir import DataDirLock
 from stand.errors import DataDirLocked, StandError, StorageError
-from stand.jobs import JobManager, RunOutcome, RunPlan
+from stand.jobs import JobManager
 from stand.runfile import format_run
+from stand.runner import RunOutcome, RunPlan
 from stand.storage import Storage
 from tests.integration.test_api_support import ROOT, free_port, serve, wait_for
 

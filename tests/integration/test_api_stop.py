@@ -14,7 +14,7 @@ from typing import Any
 from fastapi.testclient import TestClient
 
 from api.app import create_app, default_runner
-from stand.jobs import StandRunner
+from stand.runner import StandRunner
 from stand.settings import Settings
 
 #: The requirement: every drive in quick stop within this much stand time of the request, s.
