@@ -5,10 +5,19 @@ at the sample instants (:meth:`MotorPlant.measure`). The same object sits behind
 direct simulation (:mod:`stand.physics.simulate`) and behind a simulated CiA 402 drive on
 the bus, so both see identical physics.
 
-Mechanics, per sub-step ``h`` (semi-implicit Euler; friction with Karnopp sticking)::
+Mechanics::
 
     J·ω' = Kt·i·(1 + ε·sin(Nr·θ + φr)) − D·ω − C·θ − Tcog·sin(Nc·θ + φc)
            − T_friction(ω) − T_backlash
+
+integrated in sub-steps ``h`` of at most :data:`MAX_SUBSTEP_S` so that the samples are
+those of the continuous system (``python tests/bench/bench_plant.py``: within 1e-5 of the
+angle's range of a 1 µs reference, second order in ``h``). Per sub-step, position Verlet:
+the torques that depend on the angle and speed are taken at the predicted mid-step state;
+the current is the armature's exact exponential over the sub-step (its mean drives the
+speed, its ramp-weighted mean the angle, :mod:`stand.physics.armature`); viscous damping
+is trapezoidal. Dry friction (Coulomb, Stribeck, Karnopp sticking): a zero crossing of the
+speed is located inside the sub-step, and so is the breakaway of a sticking shaft.
 """
 
 from __future__ import annotations
@@ -128,6 +137,8 @@ class MotorPlant:
         self.J = motor.J + added_inertia
         self.theta = 0.0
         self.omega = 0.0
+        #: Acceleration over the last sub-step, rad/s² (predicts the mid-step speed).
+        self.accel = 0.0
         self.time_s = 0.0
         e = self.effects
         self.coulomb, self.static_excess, self.stribeck_ws = friction_levels(e)
@@ -156,7 +167,7 @@ class MotorPlant:
                                  self.armature.v, dt_s)
 
     def advance(self, dt_s: float) -> None:
-        """Advance the physics by ``dt_s`` seconds."""
+        """Advance the physics by ``dt_s`` seconds (see :func:`advance_shaft`)."""
         n = substeps_for(dt_s)
         h = dt_s / n
         arm = self.armature
@@ -165,45 +176,88 @@ class MotorPlant:
         coulomb, excess, ws = self.coulomb, self.static_excess, self.stribeck_ws
         breakaway = coulomb + excess
         cogging, ripple, backlash = self.cogging, self.ripple, self.backlash
-        theta, omega = self.theta, self.omega
+        theta, omega, accel = self.theta, self.omega, self.accel
         theta_l, omega_l = self.theta_load, self.omega_load
         extra = self.extra_torque
+        damp = 0.5 * h * D / J
         for sub in range(n):
-            i = arm.step(h, omega)
-            gain = 1.0 + ripple[0] * math.sin(ripple[1] * theta + ripple[2]) if ripple else 1.0
-            torque = Kt * i * gain - D * omega - C * theta
+            i_start = arm.i
+            theta_m = theta + 0.5 * h * omega  # position Verlet: forces at mid-step
+            omega_m = omega + 0.5 * h * accel
+            arm.step(h, omega_m)
+            gain = 1.0 + ripple[0] * math.sin(ripple[1] * theta_m + ripple[2]) if ripple else 1.0
+            load = C * theta_m  # torques other than the motor's, viscous friction
             if extra is not None:
-                torque -= extra(theta, omega, i, self.time_s + sub * h)
+                load += extra(theta_m, omega_m, arm.i_mean, self.time_s + (sub + 0.5) * h)
             if cogging:
-                torque -= cogging[0] * math.sin(cogging[1] * theta + cogging[2])
+                load += cogging[0] * math.sin(cogging[1] * theta_m + cogging[2])
             if backlash:
                 gap, J_load, k, c = backlash
-                twist = theta - theta_l
+                twist = theta_m - theta_l - 0.5 * h * omega_l
                 contact = 0.0
                 if twist > gap:
-                    contact = max(0.0, k * (twist - gap) + c * (omega - omega_l))
+                    contact = max(0.0, k * (twist - gap) + c * (omega_m - omega_l))
                 elif twist < -gap:
-                    contact = min(0.0, k * (twist + gap) + c * (omega - omega_l))
-                torque -= contact
-                omega_l += h * contact / J_load
-                theta_l += h * omega_l
+                    contact = min(0.0, k * (twist + gap) + c * (omega_m - omega_l))
+                load += contact
+                new_l = omega_l + h * contact / J_load
+                theta_l += 0.5 * h * (omega_l + new_l)
+                omega_l = new_l
+            drive = Kt * gain
             if breakaway > 0.0:
-                if omega == 0.0:
-                    if abs(torque) <= breakaway:
-                        continue  # stuck: static friction holds the shaft
-                    torque -= math.copysign(breakaway, torque)
-                    new_omega = omega + h * torque / J
-                else:
-                    level = coulomb
-                    if excess:
-                        level += excess * math.exp(-(omega / ws) ** 2)
-                    new_omega = omega + h * (torque - math.copysign(level, omega)) / J
-                    if new_omega * omega < 0.0:
-                        new_omega = 0.0  # crossed zero: friction may hold it there
-                omega = new_omega
+                theta_new, omega_new = _friction_substep(
+                    h, J, D, theta, omega, omega_m, drive, i_start, arm, load,
+                    coulomb, excess, ws, breakaway)
             else:
-                omega += h * torque / J
-            theta += h * omega
-        self.theta, self.omega = theta, omega
+                omega_new = (omega * (1.0 - damp) + h * (drive * arm.i_mean - load) / J) / (1.0 + damp)
+                theta_new = (theta + 0.5 * h * (omega + omega_new)
+                             + 0.5 * h * h * drive * (arm.i_ramp - arm.i_mean) / J)
+            accel = (omega_new - omega) / h
+            theta, omega = theta_new, omega_new
+        self.theta, self.omega, self.accel = theta, omega, accel
         self.theta_load, self.omega_load = theta_l, omega_l
         self.time_s += dt_s
+
+
+def _friction_substep(h: float, J: float, D: float, theta: float, omega: float,
+                      omega_m: float, drive: float, i_start: float, arm: Armature,
+                      load: float, coulomb: float, excess: float, ws: float,
+                      breakaway: float) -> tuple[float, float]:
+    """One sub-step of a shaft with dry friction; return the new angle and speed.
+
+    A moving shaft slides against the Coulomb (and Stribeck) level at its mid-step speed;
+    where the speed would cross zero, the crossing is located in the sub-step (speed
+    linear in time) and, for the rest of it, the shaft sticks unless the other torques
+    exceed the breakaway level. A sticking shaft breaks away where the torque, linear
+    between the sub-step's ends, reaches that level.
+    """
+    damp = 0.5 * h * D / J
+    if omega != 0.0:
+        level = coulomb
+        if excess:
+            level += excess * math.exp(-(omega_m / ws) ** 2)
+        force = drive * arm.i_mean - load - math.copysign(level, omega)
+        omega_new = (omega * (1.0 - damp) + h * force / J) / (1.0 + damp)
+        if omega_new * omega >= 0.0:
+            return (theta + 0.5 * h * (omega + omega_new)
+                    + 0.5 * h * h * drive * (arm.i_ramp - arm.i_mean) / J), omega_new
+        part = omega / (omega - omega_new)  # share of the sub-step before zero speed
+        theta += 0.5 * part * h * omega
+        rest = (1.0 - part) * h
+        torque = drive * arm.i - load  # at rest, at the sub-step's end
+        if abs(torque) <= breakaway:
+            return theta, 0.0
+        omega_new = rest * (torque - math.copysign(breakaway, torque)) / J
+        return theta + 0.5 * rest * omega_new, omega_new
+    torque_end = drive * arm.i - load
+    if abs(torque_end) <= breakaway:
+        return theta, 0.0  # stuck: static friction holds the shaft
+    sign = math.copysign(1.0, torque_end)
+    over_start = sign * (drive * i_start - load) - breakaway
+    over_end = abs(torque_end) - breakaway
+    if over_start >= 0.0:
+        force = sign * (drive * arm.i_mean - load) - breakaway
+        omega_new = sign * h * force / J
+        return theta + 0.5 * h * omega_new, omega_new
+    rest = h * over_end / (over_end - over_start)  # moving after the breakaway
+    return theta + sign * over_end * rest * rest / (6.0 * J), sign * over_end * rest / (2.0 * J)

@@ -93,10 +93,12 @@ class ReducerPlant:
         fr_in, fr_out = self.friction
         th_in, th_out = self.theta
         w_in, w_out = self.omega
-        for _ in range(steps):
-            i_in = arm_in.step(h, w_in)
-            i_out = arm_out.step(h, w_out)
-            twist = th_in / n - th_out
+        half = 0.5 * h
+        for _ in range(steps):  # position Verlet: forces at mid-step (see plant.py)
+            tm_in, tm_out = th_in + half * w_in, th_out + half * w_out
+            arm_in.step(h, w_in)
+            arm_out.step(h, w_out)
+            twist = tm_in / n - tm_out
             rate = w_in / n - w_out
             contact = 0.0
             if twist > gap:
@@ -105,16 +107,19 @@ class ReducerPlant:
                 contact = min(0.0, k * (twist + gap) + c * rate)
             forward = contact * w_out >= 0.0
             load_in = contact / (n * eta) if forward else contact * eta / n
-            t_in = m_in.Kt * i_in - m_in.D * w_in - load_in
-            t_out = m_out.Kt * i_out - m_out.D * w_out + contact
+            t_in = m_in.Kt * arm_in.i_mean - m_in.D * w_in - load_in
+            t_out = m_out.Kt * arm_out.i_mean - m_out.D * w_out + contact
             if fr_in and w_in:
                 t_in -= math.copysign(fr_in, w_in)
             if fr_out and w_out:
                 t_out -= math.copysign(fr_out, w_out)
-            w_in += h * t_in / m_in.J
-            w_out += h * t_out / m_out.J
-            th_in += h * w_in
-            th_out += h * w_out
+            new_in = w_in + h * t_in / m_in.J
+            new_out = w_out + h * t_out / m_out.J
+            shape_in = m_in.Kt * (arm_in.i_ramp - arm_in.i_mean) / m_in.J
+            shape_out = m_out.Kt * (arm_out.i_ramp - arm_out.i_mean) / m_out.J
+            th_in = tm_in + half * (new_in + h * shape_in)
+            th_out = tm_out + half * (new_out + h * shape_out)
+            w_in, w_out = new_in, new_out
         self.theta = [th_in, th_out]
         self.omega = [w_in, w_out]
         self.time_s += dt_s
