@@ -12,6 +12,11 @@ settling within the period on the value read at the next sample; ``w = 0.5`` for
 current that varies smoothly (the period's mean); ``w = 0`` for a drive that actuates,
 then samples.
 
+When the timing is fitted, its column is the current loop's settling: a fast loop
+settling on a held reference leaves each period's deficit ``(1 − w)·Δi`` near the
+period's start, not spread over it (:meth:`Design._settling`): the same velocity, but the
+angle differs by ``(Kt/J)·(1 − w)·Δi·Δt²/2``.
+
 Every column is passed through the same kernel as the angle
 (:mod:`stand.ident.derivatives`), so the filtered signals obey the same equation. A
 column held over each period (the current, the period means of ``sin Nθ``) goes through
@@ -63,6 +68,9 @@ RAMP_COLUMN = "current_ramp"
 #: the same sign and each exceeds this many standard deviations of a difference of two
 #: noisy samples (4: white noise alone passes each with probability 6e-5, both far less).
 RAMP_SIGMAS = 4.0
+#: The timing column carries a fast current loop's settling at the start of each period
+#: (:meth:`Design._settling`) rather than a change held over the whole period.
+SETTLING_AT_START = True
 #: Columns that carry the measured current (and so need an instrument).
 CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, "rip_sin", "rip_cos"})
 
@@ -218,6 +226,37 @@ class Design:
             return self.current(spec, instrument) * periodic
         return periodic
 
+    @staticmethod
+    def _settles(spec: ModelSpec, names: list[str]) -> bool:
+        """The timing column carries the current loop's settling (see :meth:`_settling`)."""
+        return SETTLING_AT_START and TIMING_COLUMN in names and spec.input_weight == 0.0
+
+    def _settling(self, spec: ModelSpec, instrument: bool) -> np.ndarray:
+        """The timing column as the settling of a fast current loop: each period's
+        change ``i[n+k+1] − i[n+k]`` as an impulse at the period's start, cached.
+
+        A first-order loop (``τ`` ≪ Δt) settling on a held reference gives over the
+        period ``i[n+1] − (i[n+1] − i[n])·e^(−s/τ)``: the period's end value held, less a
+        deficit of area ``(1 − w)·Δt·Δi`` (``w = 1 − τ/Δt``) concentrated within ``τ`` of
+        the period's start. Held over the whole period instead, the deficit sits half a
+        period late: the velocity is the same but the angle is not. Through the kernel the
+        deficit is ``(1 − w)·Δt·Δi·g(t − t_n)``: with the current held at ``w = 1`` and
+        this column (coefficient ``(Kt/J)·w``) the model is ``(Kt/J)·[held(w = 1) −
+        impulse + w·impulse]``.
+        """
+        key = ("settling", instrument, spec.delay)
+        if key not in self.cache:
+            raw = self._raw(spec, TIMING_COLUMN, instrument)
+            self.cache[key] = self.filt(raw, held=False)
+        return np.asarray(self.cache[key])
+
+    def _settling_weights(self) -> np.ndarray:
+        """Weight of each current sample in :meth:`_settling` (as :meth:`noise_weights`)."""
+        g, _, _ = kernel(self.half_width, self.sig.dt_s)
+        zero = np.zeros(1)
+        return np.asarray(self.sig.dt_s * (np.concatenate([g, zero, zero])
+                                           - np.concatenate([zero, g, zero])))
+
     def ramp_mask(self, delay: int, ramp: bool) -> np.ndarray:
         """1 on the periods whose current change goes on into the next period beyond the
         noise (:data:`RAMP_SIGMAS`) when ``ramp``, on the others when not."""
@@ -285,24 +324,31 @@ class Design:
         sigma2, _ = self.noise_level()
         own = self.noise_weights(spec.input_weight)
         ones = np.ones(len(self.sig))
-        sources: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        step = self.noise_weights(1.0) - self.noise_weights(0.0)
+        settles = self._settles(spec, names)
+        sources: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
         for name in names:
             if name == "current":
-                sources[name] = (own, ones)
+                sources[name] = [(own, ones)]
+                if settles:
+                    mask = self.ramp_mask(spec.delay, False)
+                    sources[name].append((step - self._settling_weights(), mask))
+            elif name == TIMING_COLUMN and settles:
+                sources[name] = [(self._settling_weights(), self.ramp_mask(spec.delay, False))]
             elif name in (TIMING_COLUMN, RAMP_COLUMN):
-                sources[name] = (self.noise_weights(1.0) - self.noise_weights(0.0),
-                                 self.ramp_mask(spec.delay, name == RAMP_COLUMN))
+                sources[name] = [(step, self.ramp_mask(spec.delay, name == RAMP_COLUMN))]
             elif name in ("rip_sin", "rip_cos"):
-                sources[name] = (own, periodic_column(spec.ripple_N or 0, self.sig,
-                                                      name == "rip_sin"))
+                sources[name] = [(own, periodic_column(spec.ripple_N or 0, self.sig,
+                                                       name == "rip_sin"))]
         h = self.half_width
         out = np.zeros((len(names), len(names)))
         for j, a in enumerate(names):
             for k, b in enumerate(names):
                 if a in sources and b in sources:
-                    (ea, ma), (eb, mb) = sources[a], sources[b]
-                    product = (ma * mb)[h:len(self.sig) - h][rows]
-                    out[j, k] = sigma2 * float(ea @ eb) * float(np.sum(product))
+                    for ea, ma in sources[a]:
+                        for eb, mb in sources[b]:
+                            product = (ma * mb)[h:len(self.sig) - h][rows]
+                            out[j, k] += sigma2 * float(ea @ eb) * float(np.sum(product))
         return out
 
     def rows(self, spec: ModelSpec, instrumented: bool = True) -> slice:
@@ -332,8 +378,21 @@ class Design:
                 inputs.insert(2, RAMP_COLUMN)
         names = (["theta"] if spec.spring else []) + ["omega"] + inputs
         motion = {"theta": self.theta, "omega": self.omega}
-        X = np.column_stack([motion[n] if n in motion else self.column(spec, n) for n in names])
+
+        def col(name: str, instrument: bool) -> np.ndarray:
+            if name in motion:
+                return motion[name]
+            if self._settles(spec, names):
+                if name == TIMING_COLUMN:
+                    return self._settling(spec, instrument)
+                if name == "current":  # held at the period's end, less the settling
+                    return (self.column(spec, name, instrument)
+                            + self.column(spec, TIMING_COLUMN, instrument)
+                            - self._settling(spec, instrument))
+            return self.column(spec, name, instrument)
+
+        X = np.column_stack([col(n, False) for n in names])
         Z = X if not (instrumented and self.lag) else np.column_stack(
-            [motion[n] if n in motion else self.column(spec, n, True) for n in names])
+            [col(n, True) for n in names])
         keep = self.rows(spec, instrumented)
         return names, self.alpha[keep], X[keep], Z[keep]

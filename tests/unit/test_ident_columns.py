@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stand.diagnosis.signals import prepare
+from stand.excitation import excitation
 from stand.ident.columns import SUBSAMPLES, Design
+from stand.ident.identify import identify_run
+from stand.physics.effects import Effects
+from stand.physics.parts import DriveParams, MotorParams, SensorParams
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
 from stand.runfile import check_columns
 
 #: Half period of the reversing motion, s; the crossing is a quarter into it.
@@ -76,3 +83,25 @@ def test_a_current_that_ramps_over_several_periods_is_told_from_steps_and_noise(
     ramp = np.flatnonzero(design.ramp_mask(0, True))
     expected = np.array([s + k for s in range(40, n, 80) for k in (-1, 0)])
     np.testing.assert_array_equal(ramp, expected)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_current_loop_settling_is_placed_at_the_period_start(seed: int,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    # A 0.2 ms current loop sampled every 2 ms: each step's deficit (10 % of the period's
+    # mean change) settles at the start of the period. With the settling there Kt/J is
+    # within 0.05 % (−0.016 … +0.022 % on these draws) and inside its interval; with the
+    # deficit held over the whole period it was +0.07 … +0.11 %.
+    motor = MotorParams(R=2.0, L=1e-3, Kt=0.05, J=2e-5, D=4e-5)
+    plant = MotorPlant(motor, DriveParams(mode="current", supply_V=1e3, current_limit_A=10.0),
+                       SensorParams(encoder_lines=0, current_noise_A=0.003), Effects(),
+                       seed=seed)
+    dt = 2e-3
+    command = excitation("prbs", int(4 / dt), dt, 0.0, 0.3, 15, seed=seed)
+    run = simulate_motor(plant, "current", command, dt)
+    truth = motor.Kt / motor.J
+    r = identify_run(run)
+    assert abs(r.Kt_over_J / truth - 1) < 5e-4
+    low, high = r.Kt_over_J_ci95
+    assert low <= truth <= high
+    assert r.current_timing_samples == pytest.approx(1 - 2e-4 / dt, abs=0.01)
