@@ -192,6 +192,28 @@ def _taken(x: np.ndarray, left: np.ndarray) -> float:
     return float(projected @ inverse @ projected)
 
 
+#: Knots of the phase terms beside the along-travel test's columns: this many quantiles
+#: of TRAIN's speed, evenly spaced in probability (the ends included).
+SPEED_KNOTS = 9
+
+
+def phase_terms(sig: Signals, knots: np.ndarray) -> np.ndarray:
+    """A torque that is any function of the phase of the motion, as columns: of the
+    speed ``ω`` and of the sign of the acceleration, ``f(ω) + sign(α)·h(ω)``, with ``f``
+    and ``h`` piecewise linear between ``knots`` (rad/s; held beyond the ends) and a step
+    at ``ω = 0``.
+
+    On a periodic motion whose passes are alike the phase is what fixes the speed and
+    the side of its swing, and so the position: ``sin φ·g(cos φ)`` is ``sign(α)·h(ω)``
+    there. Where the passes differ (a broadband command), the position at a given
+    speed and side varies, and a level along the travel stays separable from these."""
+    w = np.clip(sig.omega_f, knots[0], knots[-1])
+    speed = np.column_stack([np.sign(sig.omega_f),
+                             *(np.interp(w, knots, np.eye(len(knots))[k])
+                               for k in range(len(knots)))])
+    return np.column_stack([speed, np.sign(sig.accel_f)[:, None] * speed])
+
+
 def along_travel_test(residual_train: np.ndarray, train: Signals,
                       residual_holdout: np.ndarray, holdout: Signals,
                       index: np.ndarray) -> StructureTest:
@@ -208,11 +230,23 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
     scales = _scales(train)
     usable = np.unique(index.ravel())
     edge = slice(int(usable[0]), len(train) - int(usable[0]))
-    n_tr = columns(train, scales, TRAVEL_NUISANCE)
-    n_ho = columns(holdout, scales, TRAVEL_NUISANCE)
+    # any function of the motion's phase is a nuisance too: where the speed at a
+    # position barely varies between passes (a sine, every pass alike), position and
+    # the sign of the speed fix the phase, and a remainder that depends on the speed or
+    # the phase alone (a missed delay, a friction model's approximation) would otherwise
+    # pass for one along the travel; where the passes differ, the position terms keep
+    # what the phase terms cannot take
+    knots = np.unique(np.quantile(train.omega_f[edge], np.linspace(0.0, 1.0, SPEED_KNOTS)))
+    n_tr = np.column_stack([columns(train, scales, TRAVEL_NUISANCE), phase_terms(train, knots)])
+    n_ho = np.column_stack([columns(holdout, scales, TRAVEL_NUISANCE),
+                            phase_terms(holdout, knots)])
     null = _predictor(n_tr[edge], residual_train[edge])
     left = residual_train[edge] - n_tr[edge] @ null
-    q, _ = np.linalg.qr(n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300))
+    # an orthonormal basis of the nuisance columns' span (the speed terms repeat the
+    # constant and the speed: directions of no weight are left out)
+    u, weight, _ = np.linalg.svd(
+        n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300), full_matrices=False)
+    q = u[:, weight > np.sqrt(COLLINEAR_EIGENVALUE_SHARE) * weight[0]]
     best, best_order = -1.0, None
     theta, sign = train.theta_f[edge], np.sign(train.omega_f)[edge]
     orders = _travel_orders(train)
