@@ -258,7 +258,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
     bench = Bench(tr, ho, horizon_s)
-    spec, gap = _nominal_spec(bench.on_train, spring)
+    spec = _nominal_spec(bench.on_train, spring)
     law_train, law_holdout = loop_inputs(train, holdout, tr, ho)
     notes = [x.note for x in (law_train, law_holdout) if x.note and not x.from_law]
     if not law_train.from_law:
@@ -266,6 +266,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
     law_bench = Bench(law_train.signals, law_holdout.signals, horizon_s)
     law_spec = ModelSpec(input_weight=PERIOD_MEAN_WEIGHT, spring=spring)
     law_gap = law_bench.on_train.score(law_spec).gap
+    gap = bench.on_train.score(spec).gap
     if law_gap < gap:
         return law_bench, law_spec, ho, [
             f"driven by the PI speed loop's current over each sample period ({law_train.note}; "
@@ -277,9 +278,9 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
         "samples)"]
 
 
-def _nominal_spec(on_train: Bench, spring: bool) -> tuple[ModelSpec, float]:
+def _nominal_spec(on_train: Bench, spring: bool) -> ModelSpec:
     """The nominal model with the input reconstruction that simulates TRAIN best
-    (``on_train``: TRAIN against itself, :attr:`Bench.on_train`), and its gap there (%).
+    (``on_train``: TRAIN against itself, :attr:`Bench.on_train`).
 
     The weight is picked on the grid ``INPUT_WEIGHTS`` and then refined by halving the
     step around the best one ``WEIGHT_REFINEMENTS`` times, within the grid's range. Where
@@ -317,7 +318,7 @@ def _nominal_spec(on_train: Bench, spring: bool) -> tuple[ModelSpec, float]:
         gap(best + step)
         best = min(gaps, key=gaps.__getitem__)
         step /= 2
-    return ModelSpec(input_weight=best, spring=spring), gaps[best]
+    return ModelSpec(input_weight=best, spring=spring)
 
 
 def _nominal_dict(model: FittedModel, kt: float | None) -> dict[str, float]:
