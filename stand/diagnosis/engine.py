@@ -45,7 +45,7 @@ from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import PairedTest, paired_improvement
-from stand.diagnosis.structure import along_travel_test, structure_test
+from stand.diagnosis.structure import MAX_PHASE_SHARE, along_travel_test, structure_test
 from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
@@ -205,7 +205,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                + bench.revisions
                + _approximation_note(base.gap, final.gap, noise_gap, left)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
-                                 along.test.p_value)),
+                                 along.test.p_value) + _phase_note(along.phase_share)),
         steps=steps), traces
 
 
@@ -276,6 +276,17 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
         f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %: the "
         "sampled current drives the models (the loop may saturate its voltage between "
         "samples)"]
+
+
+def _phase_note(share: float) -> list[str]:
+    """Why the along-travel test did not run (:func:`.structure.along_travel_test`)."""
+    if share <= MAX_PHASE_SHARE:
+        return []
+    return [f"the test for a level along the travel is not run: on TRAIN the speed at a "
+            f"position hardly varies between passes ({100 * share:.1f} % of its position "
+            "terms is a function of the motion's phase), so a torque along the travel "
+            "cannot be told from one that depends on the speed (record a broadband run, "
+            "e.g. PRBS, for that test)"]
 
 
 def _nominal_spec(on_train: Bench, spring: bool) -> ModelSpec:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stand.diagnosis.signals import Signals
-from stand.ident.speed_loop import speed_loop
+from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
 from stand.runfile import Run
 
 #: Input weight of a current that is already the mean over each period
@@ -75,11 +75,21 @@ def loop_input(run: Run, sig: Signals) -> LoopInput:
                          "the loop's kicks between samples may leave a gap no effect explains")
     period = loop.period_current
     # on the samples' timeline: the current sample n + delay shows the period after n
-    current = np.concatenate([np.repeat(period[:1], loop.delay),
-                              period[:len(period) - loop.delay]])
+    current = _late(period, loop.delay)
+    theta, target = sig.theta, np.asarray(run[TARGET_COLUMN], dtype=float)
+    # the law's parts over each period: kp·(r − ω̄) and ki·(∫r − θ)
+    error = np.append(target[:-1] - np.diff(theta) / sig.dt_s, 0.0)
+    lag = np.concatenate([[0.0], np.cumsum(target[:-1] * sig.dt_s)]) - (theta - theta[0])
+    parts = np.column_stack([_late(loop.kp * error, loop.delay),
+                             _late(loop.ki * lag, loop.delay)])
     note = (f"{run.source}: kp {loop.kp:.3g} A·s/rad, ki {loop.ki:.3g} A/rad, the law "
             f"explaining the sampled current to {loop.residual_ratio:.2g} times its noise")
-    return LoopInput(replace(sig, current=current, cache={}), sig, True, note)
+    return LoopInput(replace(sig, current=current, loop_parts=parts, cache={}), sig, True, note)
+
+
+def _late(values: np.ndarray, delay: int) -> np.ndarray:
+    """``values[n − delay]`` (the first value repeated before the start)."""
+    return np.concatenate([np.repeat(values[:1], delay), values[:len(values) - delay]])
 
 
 def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
