@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stand.diagnosis.signals import Signals
-from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
+from stand.ident.speed_loop import TARGET_COLUMN, speed_loop, tracking_errors
 from stand.runfile import Run
 
 #: Input weight of a current that is already the mean over each period
@@ -76,10 +76,9 @@ def loop_input(run: Run, sig: Signals) -> LoopInput:
     period = loop.period_current
     # on the samples' timeline: the current sample n + delay shows the period after n
     current = _late(period, loop.delay)
-    theta, target = sig.theta, np.asarray(run[TARGET_COLUMN], dtype=float)
     # the law's parts over each period: kp·(r − ω̄) and ki·(∫r − θ)
-    error = np.append(target[:-1] - np.diff(theta) / sig.dt_s, 0.0)
-    lag = np.concatenate([[0.0], np.cumsum(target[:-1] * sig.dt_s)]) - (theta - theta[0])
+    error, lag = tracking_errors(sig.theta, np.asarray(run[TARGET_COLUMN], dtype=float),
+                                 sig.dt_s)
     parts = np.column_stack([_late(loop.kp * error, loop.delay),
                              _late(loop.ki * lag, loop.delay)])
     note = (f"{run.source}: kp {loop.kp:.3g} A·s/rad, ki {loop.ki:.3g} A/rad, the law "
