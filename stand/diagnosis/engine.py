@@ -28,6 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from stand import effects
+from stand.diagnosis.loop_input import PERIOD_MEAN_WEIGHT, loop_inputs
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual
 from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
@@ -44,7 +45,7 @@ from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import PairedTest, paired_improvement
-from stand.diagnosis.structure import along_travel_test, structure_test
+from stand.diagnosis.structure import MAX_PHASE_SHARE, along_travel_test, structure_test
 from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
@@ -96,11 +97,9 @@ def compare_on_holdout(train: Run, holdout: Run,
     InputError
         Runs too short for a holdout test.
     """
-    tr, ho = prepare(train), prepare(holdout)
-    bench = Bench(tr, ho, horizon_s)
-    base_spec = _nominal_spec(bench.on_train, False)
+    bench, base_spec, _, _ = _driven(train, holdout, horizon_s, False)
     nominal = bench.score(base_spec)
-    other = bench.score_model(model_of(base_spec, tr))
+    other = bench.score_model(model_of(base_spec, bench.train))
     return HoldoutComparison(nominal_gap_percent=nominal.gap, gap_percent=other.gap,
                              test=paired_improvement(nominal.sse, other.sse))
 
@@ -151,14 +150,9 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         raise InputError(f"horizon_s must be > 0 s, got {horizon_s}")
     if max_effects < 1:
         raise InputError(f"max_effects must be >= 1, got {max_effects}")
-    tr, ho = prepare(train), prepare(holdout)
-    if abs(tr.dt_s - ho.dt_s) > 0.01 * tr.dt_s:
-        raise InputError(
-            f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "
-            f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
-        )
-    bench = Bench(tr, ho, horizon_s)
-    base = bench.score(_nominal_spec(bench.on_train, spring))
+    bench, base_spec, sampled, input_notes = _driven(train, holdout, horizon_s, spring)
+    tr, ho = bench.train, bench.holdout
+    base = bench.score(base_spec)
     singles = {name: bench.candidate(name, base) for name in effects.EFFECTS}
     n_tests = len(singles)
     scores = []
@@ -173,7 +167,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     chosen, final, steps = select(bench, base, singles, {e.effect: e for e in scores},
                                    max_effects)
     floor = noise_floor(ho, bench.scale)
-    noise_gap = noise_gap_percent(ho, bench.scale, bench.seg.horizon, base.model)
+    noise_gap = noise_gap_percent(sampled, bench.scale, bench.seg.horizon, base.model)
     residual_final = equation_residual(final.model, ho)
     residual_train = equation_residual(final.model, tr)
     structure = structure_test(residual_train, tr, residual_final, ho, bench.seg.index)
@@ -207,10 +201,11 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         noise_gap_percent=noise_gap,
         structure_p_value=structure.test.p_value,
         position_structure_p_value=along.test.p_value,
-        notes=(limits(tr, bench.tone_hz) + aliases(bench.aliased) + bench.revisions
+        notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
+               + bench.revisions
                + _approximation_note(base.gap, final.gap, noise_gap, left)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
-                                 along.test.p_value)),
+                                 along.test.p_value) + _phase_note(along.phase_share)),
         steps=steps), traces
 
 
@@ -241,6 +236,57 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
             f"its equation error holds a shape no noise makes: speed, current-level and "
             f"time shapes p = {p_shapes:.2g}, a friction level or torque along the travel "
             f"p = {p_along:.2g} (fitted on TRAIN, tested on HOLDOUT)"]
+
+
+def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
+            ) -> tuple[Bench, ModelSpec, Signals, list[str]]:
+    """The two runs prepared with the input current that simulates TRAIN best, and the
+    nominal spec for it; also HOLDOUT with its sampled current (the noise gap's current
+    noise is the sensor's) and notes on what drives the models.
+
+    The sampled current's reconstructions (:func:`_nominal_spec`) compete on TRAIN with
+    the speed loop's current where both runs hold their target and the PI law holds on
+    both (:mod:`.loop_input`): the law's current is one more reconstruction of the
+    current between samples, picked the same way. A law that holds at the samples can
+    still miss the current between them (a kick that needs more than the supply
+    voltage); its current then simulates TRAIN worse and the samples' stays.
+    """
+    tr, ho = prepare(train), prepare(holdout)
+    if abs(tr.dt_s - ho.dt_s) > 0.01 * tr.dt_s:
+        raise InputError(
+            f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "
+            f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
+        )
+    bench = Bench(tr, ho, horizon_s)
+    spec = _nominal_spec(bench.on_train, spring)
+    law_train, law_holdout = loop_inputs(train, holdout, tr, ho)
+    notes = [x.note for x in (law_train, law_holdout) if x.note and not x.from_law]
+    if not law_train.from_law:
+        return bench, spec, ho, notes[:1]
+    law_bench = Bench(law_train.signals, law_holdout.signals, horizon_s)
+    law_spec = ModelSpec(input_weight=PERIOD_MEAN_WEIGHT, spring=spring)
+    law_gap = law_bench.on_train.score(law_spec).gap
+    gap = bench.on_train.score(spec).gap
+    if law_gap < gap:
+        return law_bench, law_spec, ho, [
+            f"driven by the PI speed loop's current over each sample period ({law_train.note}; "
+            f"TRAIN simulated to {law_gap:.2f} %, {gap:.2f} % with the sampled current)"]
+    return bench, spec, ho, [
+        f"the PI speed law holds at the samples ({law_train.note}), but its current "
+        f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %: the "
+        "sampled current drives the models (the loop may saturate its voltage between "
+        "samples)"]
+
+
+def _phase_note(share: float) -> list[str]:
+    """Why the along-travel test did not run (:func:`.structure.along_travel_test`)."""
+    if share <= MAX_PHASE_SHARE:
+        return []
+    return [f"the test for a level along the travel is not run: on TRAIN the speed at a "
+            f"position hardly varies between passes ({100 * share:.1f} % of its position "
+            "terms is a function of the motion's phase), so a torque along the travel "
+            "cannot be told from one that depends on the speed (record a broadband run, "
+            "e.g. PRBS, for that test)"]
 
 
 def _nominal_spec(on_train: Bench, spring: bool) -> ModelSpec:

@@ -71,6 +71,10 @@ class Signals:
     quant_rad: float
     top_speed: float
     source: str
+    #: Under a speed loop whose law drives the models (:mod:`.loop_input`): the law's
+    #: proportional and integral parts over each period (samples × 2, A), whose gains'
+    #: errors the shape tests take as nuisance; None otherwise.
+    loop_parts: np.ndarray | None = None
     cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False,
                                                         compare=False)
 

@@ -11,7 +11,9 @@ plausibly does (torque growing faster than the speed, ``ω|ω|`` and ``ω³``; a
 constant that changes with the current level, ``i|i|`` and ``i³``, or over the run,
 ``i·t``) are fitted on TRAIN to the equation error the model leaves there,
 beside nuisance columns that take up what the sampled current itself leaves (a
-constant, ``i``, ``ω``, ``di/dt``, the jerk). Their fit is then applied to HOLDOUT
+constant, ``i``, ``ω``, ``di/dt``, the jerk; under a speed loop whose law drives the
+models, also the law's proportional and integral parts, whose gains' errors are what
+that reconstruction leaves). Their fit is then applied to HOLDOUT
 unchanged and tested, segment by segment, against the nuisance columns alone with the
 diagnosis' paired test (:func:`stand.diagnosis.significance.paired_improvement`).
 Noise fitted on TRAIN does not predict HOLDOUT's noise, so under the null the shapes do
@@ -55,10 +57,15 @@ class StructureTest:
     significant : bool
         ``test.p_value`` below :data:`FAMILY_ALPHA`: the model leaves structure beyond
         noise.
+    phase_share : float
+        Of :func:`along_travel_test`: the share of its position columns that a function
+        of the motion's phase takes on TRAIN (:func:`phase_share`); above
+        :data:`MAX_PHASE_SHARE` the test is not run (``test.p_value`` 1).
     """
 
     test: PairedTest
     significant: bool
+    phase_share: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -94,7 +101,11 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
         "current_rate": lambda: np.gradient(i, sig.dt_s) * sig.dt_s,
         "jerk": lambda: np.gradient(sig.accel_f, sig.dt_s),
     }
-    return np.column_stack([made[name]() for name in names])
+    out = np.column_stack([made[name]() for name in names])
+    if sig.loop_parts is not None and "current" in names:
+        # the speed law's current: what its gains' errors leave are its parts
+        out = np.column_stack([out, sig.loop_parts / scales.current])
+    return out
 
 
 def _predictor(x_train: np.ndarray, e_train: np.ndarray) -> np.ndarray:
@@ -130,11 +141,11 @@ def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout:
     unknown = sorted(set(shapes) - set(SHAPES))
     if unknown or not shapes:
         raise InputError(f"shapes must be a non-empty subset of {SHAPES}, got {shapes}")
-    both = NUISANCE + tuple(shapes)
-    x_tr = columns(train, scales, both)
-    x_ho = columns(holdout, scales, both)
+    x_tr, x_ho = (np.column_stack([columns(sig, scales, NUISANCE),
+                                   columns(sig, scales, tuple(shapes))])
+                  for sig in (train, holdout))
     edge = slice(int(usable[0]), len(train) - int(usable[0]))
-    n_nuis = len(NUISANCE)
+    n_nuis = x_tr.shape[1] - len(shapes)
     null = _predictor(x_tr[edge, :n_nuis], residual_train[edge])
     full = _predictor(x_tr[edge], residual_train[edge])
     base = residual_holdout - x_ho[:, :n_nuis] @ null
@@ -192,6 +203,54 @@ def _taken(x: np.ndarray, left: np.ndarray) -> float:
     return float(projected @ inverse @ projected)
 
 
+#: Knots of the phase terms beside the along-travel test's columns: this many quantiles
+#: of TRAIN's speed, evenly spaced in probability (the ends included).
+SPEED_KNOTS = 9
+
+
+def phase_terms(sig: Signals, knots: np.ndarray) -> np.ndarray:
+    """A torque that is any function of the phase of the motion, as columns: of the
+    speed ``ω`` and of the sign of the acceleration, ``f(ω) + sign(α)·h(ω)``, with ``f``
+    and ``h`` piecewise linear between ``knots`` (rad/s; held beyond the ends) and a step
+    at ``ω = 0``.
+
+    On a periodic motion whose passes are alike the phase is what fixes the speed and
+    the side of its swing, and so the position: ``sin φ·g(cos φ)`` is ``sign(α)·h(ω)``
+    there. Where the passes differ (a broadband command), the position at a given
+    speed and side varies, and a level along the travel stays separable from these."""
+    w = np.clip(sig.omega_f, knots[0], knots[-1])
+    speed = np.column_stack([np.sign(sig.omega_f),
+                             *(np.interp(w, knots, np.eye(len(knots))[k])
+                               for k in range(len(knots)))])
+    return np.column_stack([speed, np.sign(sig.accel_f)[:, None] * speed])
+
+
+#: Largest share of the along-travel columns that a function of the motion's phase may
+#: take on TRAIN (:func:`phase_share`) for the test to run: beyond it the position
+#: columns keep less than a tenth of their energy apart from the phase, and what they
+#: find cannot be told from a torque that depends on the speed or the phase. Measured
+#: (docs/results/diagnose.md): 0.99-1.0 on sine runs, whose passes are alike; 0.05-0.45
+#: on broadband (PRBS, noise) runs.
+MAX_PHASE_SHARE = 0.9
+
+
+def phase_share(sig: Signals, edge: slice, q: np.ndarray, order: float) -> float:
+    """Share of the along-travel columns at ``order`` (beside the nuisance columns,
+    orthonormal basis ``q``) that a function of the motion's phase takes on ``sig``
+    (:func:`phase_terms`): near 1 where the speed at a position does not vary between
+    passes, so a level along the travel cannot be told from a speed- or phase-dependent
+    torque."""
+    x = _periodic(sig.theta_f, np.sign(sig.omega_f), order)[edge]
+    x = x - q @ (q.T @ x)
+    knots = np.unique(np.quantile(sig.omega_f[edge], np.linspace(0.0, 1.0, SPEED_KNOTS)))
+    phase = phase_terms(sig, knots)[edge]
+    phase = phase - q @ (q.T @ phase)
+    u, weight, _ = np.linalg.svd(phase, full_matrices=False)
+    basis = u[:, weight > np.sqrt(COLLINEAR_EIGENVALUE_SHARE) * weight[0]]
+    total = float(np.sum(x * x))
+    return float(np.sum((basis.T @ x) ** 2)) / total if total > 0 else 1.0
+
+
 def along_travel_test(residual_train: np.ndarray, train: Signals,
                       residual_holdout: np.ndarray, holdout: Signals,
                       index: np.ndarray) -> StructureTest:
@@ -204,6 +263,13 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
     level along the travel). The order is picked on TRAIN alone (the one whose four columns, beside the
     nuisance columns, take most of TRAIN's equation error), so the test on HOLDOUT is a
     single one at the diagnosis' level. Arguments as :func:`structure_test`.
+
+    Where the speed at a position does not vary between passes (a sine whose passes
+    are alike), position and the sign of the speed fix the phase of the motion, and any
+    remainder that depends on the speed or the phase (a missed delay, a friction
+    model's approximation) is also a function of the position: the test is not run
+    where a function of the phase takes more than :data:`MAX_PHASE_SHARE` of the
+    picked order's columns on TRAIN (:func:`phase_share`).
     """
     scales = _scales(train)
     usable = np.unique(index.ravel())
@@ -212,7 +278,11 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
     n_ho = columns(holdout, scales, TRAVEL_NUISANCE)
     null = _predictor(n_tr[edge], residual_train[edge])
     left = residual_train[edge] - n_tr[edge] @ null
-    q, _ = np.linalg.qr(n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300))
+    # an orthonormal basis of the nuisance columns' span (the speed terms repeat the
+    # constant and the speed: directions of no weight are left out)
+    u, weight, _ = np.linalg.svd(
+        n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300), full_matrices=False)
+    q = u[:, weight > np.sqrt(COLLINEAR_EIGENVALUE_SHARE) * weight[0]]
     best, best_order = -1.0, None
     theta, sign = train.theta_f[edge], np.sign(train.omega_f)[edge]
     orders = _travel_orders(train)
@@ -231,10 +301,11 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
             best, best_order = taken, float(order)
         sin, cos = sin * cos_step + cos * sin_step, cos * cos_step - sin * sin_step
     base = residual_holdout - n_ho @ null
-    if best_order is None:
+    share = phase_share(train, edge, q, best_order) if best_order is not None else 0.0
+    if best_order is None or share > MAX_PHASE_SHARE:
         return StructureTest(test=paired_improvement(np.sum(base[index] ** 2, axis=1),
                                                      np.sum(base[index] ** 2, axis=1)),
-                             significant=False)
+                             significant=False, phase_share=share)
     full = _predictor(np.column_stack(
         [n_tr, _periodic(train.theta_f, np.sign(train.omega_f), best_order)])[edge],
         residual_train[edge])
@@ -242,8 +313,9 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
         [n_ho, _periodic(holdout.theta_f, np.sign(holdout.omega_f), best_order)]) @ full
     test = paired_improvement(np.sum(base[index] ** 2, axis=1),
                               np.sum(cand[index] ** 2, axis=1))
-    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
+    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA),
+                         phase_share=share)
 
 
-__all__ = ["MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES", "TRAVEL_NUISANCE", "StructureTest",
-           "along_travel_test", "columns", "structure_test"]
+__all__ = ["MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES", "TRAVEL_NUISANCE", "StructureTest",
+           "along_travel_test", "columns", "phase_share", "phase_terms", "structure_test"]

@@ -155,6 +155,17 @@ def kink_free_derivatives(theta: np.ndarray, target: np.ndarray,
     return omega, alpha, spread
 
 
+def tracking_errors(theta: np.ndarray, target: np.ndarray,
+                    dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The loop's speed error over the period after each sample, ``r_n − ω̄_n`` with
+    ``ω̄_n = (θ_{n+1} − θ_n)/Δt`` (rad/s; 0 after the last sample), and its integral at
+    each sample, ``Σ_{m<n} r_m·Δt − (θ_n − θ_0)`` (rad): what the PI law's proportional
+    and integral gains multiply."""
+    speed_error = np.append(target[:-1] - np.diff(theta) / dt, 0.0)
+    integral = np.concatenate([[0.0], np.cumsum(target[:-1] * dt)])
+    return speed_error, integral - (theta - theta[0])
+
+
 def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
                    dt: float, quant_rad: float = 0.0) -> SpeedLoop:
     """Fit the PI law to a speed-mode run and reconstruct the current over each period.
@@ -176,8 +187,7 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
     n = len(theta)
     omega, alpha, spread = kink_free_derivatives(theta, target, dt)
     angle_sd = quant_rad / np.sqrt(12.0)
-    integral = np.concatenate([[0.0], np.cumsum(target[:-1] * dt)])
-    error_int = integral - (theta - theta[0])
+    error_int = tracking_errors(theta, target, dt)[1]
     previous = np.concatenate([target[:1], target[:-1]])
     sigma = noise_sigma(current)
     # samples at the largest |current| may sit at the drive's current limit: fitted

@@ -30,6 +30,7 @@ from stand.diagnosis.noise import unexplained
 from stand.effects import EFFECTS, UNEXPLAINED, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
+from stand.ident.speed_loop import TARGET_COLUMN
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
@@ -256,7 +257,9 @@ DRAWS: dict[str, Callable[[np.random.Generator, Case, float], dict[str, float]]]
 def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) -> dict[str, np.ndarray]:
     """Columns of the TRAIN (``which=0``) or HOLDOUT (1) run of ``case``."""
     run = _simulate(case, which, duration_s)
-    return {k: run[k] for k in ("time_s", "current_A", "position_rad")}
+    # a speed-mode run holds its target, as the stand controller records it
+    names = ("time_s", "current_A", "position_rad", TARGET_COLUMN)
+    return {k: run[k] for k in names if k in run}
 
 
 def _simulate(case: Case, which: int, duration_s: float,
