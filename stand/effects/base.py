@@ -59,9 +59,7 @@ class Effect:
         Coulomb level): never in a verdict beside it, replaced by it when it wins.
     refit_on_holdout : bool
         Whether its consistency is checked by re-fitting TRAIN's structure on HOLDOUT
-        rather than searching HOLDOUT afresh (a hyper-parameter with a flat optimum, or
-        one picked among many values whose fit on HOLDOUT can be checked otherwise: an
-        order by its phase).
+        rather than searching HOLDOUT afresh (a hyper-parameter with a flat optimum).
     picked_by_simulation : bool
         Whether its search picks hyper-parameters by simulating the run it searches
         (it then takes ``simulated``).

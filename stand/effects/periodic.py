@@ -25,19 +25,6 @@ MIN_CYCLES_IN_RECORD = 3.0
 #: runs recorded from the drive's position actual value do) find the same phase; a
 #: coincidence of one run has a phase at random.
 PHASE_TOLERANCE_RAD = math.pi / 6
-#: Whether HOLDOUT confirms an order found on TRAIN by fitting that order (same phase
-#: within ``PHASE_TOLERANCE_RAD``, sizes within the agree ratio) rather than by finding it
-#: again in a search of its own. A search over up to ``MAX_ORDER`` orders ends at the
-#: order of least equation error, the largest of many noisy improvements: over a short
-#: travel neighbouring orders fit almost alike (a sine run over 4 revolutions: orders 9
-#: and 10 within 0.5 % of equation error), and beside a first effect fitted on HOLDOUT
-#: at TRAIN's hyper-parameters another order can come out ahead, so a true torque often
-#: failed the check as a second effect (dev seed 141: ripple of order 9 found as 10
-#: and 9, of order 3 as 3 and 49, both passing their holdout test at p < 1e-10). The
-#: phase is the independent check: an order that fits TRAIN by coincidence lands at a
-#: random phase on HOLDOUT (within ±30° one time in six), and the holdout test must pass
-#: as before.
-CHECKED_BY_REFIT = True
 
 
 def orders(train: Signals) -> list[int]:

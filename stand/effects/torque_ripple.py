@@ -11,7 +11,6 @@ from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
 from stand.effects.base import Effect, Params, Simulated, fitted, phase, ratio_ok
 from stand.effects.periodic import (
-    CHECKED_BY_REFIT,
     check_order,
     harmonic_params,
     ident_orders,
@@ -35,9 +34,6 @@ class TorqueRipple(Effect):
     """
 
     name: ClassVar[str] = "torque_ripple"
-    # HOLDOUT checks TRAIN's order (in phase, similar size) instead of searching its own:
-    # see :data:`stand.effects.periodic.CHECKED_BY_REFIT`
-    refit_on_holdout: ClassVar[bool] = CHECKED_BY_REFIT
     columns: ClassVar[tuple[str, ...]] = ("rip_sin", "rip_cos")
     spec_fields: ClassVar[tuple[str, ...]] = ("ripple_N",)
     units: ClassVar[dict[str, str]] = {"eps": "1", "N": "cycles/rev", "phi": "rad"}

@@ -18,8 +18,7 @@ from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
-from stand.runfile import Run, check_columns
-from tests.bench.diagnose.benchmark import draw_case, simulate_case
+from stand.runfile import Run
 from tests.unit.test_diagnose_effects import DT_S, MOTOR, PLANTED, SENSORS, stand_runs
 
 #: A current command of 0.6 ± 0.3 A: the shaft of the test motor (Kt 0.05 N·m/A, 4 mN·m
@@ -121,19 +120,3 @@ def test_an_effect_not_needed_beside_the_others_is_dropped() -> None:
     assert chosen == ["coulomb_friction"], notes
     assert final.spec.coulomb and not final.spec.offset
     assert any(n.startswith("current_offset left out") for n in notes)
-
-
-def test_a_second_periodic_effect_is_confirmed_by_its_phase_on_holdout() -> None:
-    """Stribeck friction and a torque ripple of order 3 (a blind benchmark draw: seed 141,
-    case 164, current-mode noise command). Beside the friction, TRAIN finds the ripple at
-    order 3 and HOLDOUT's test confirms it (p ~1e-12); a fresh order search on HOLDOUT
-    ends at order 49, so the check that HOLDOUT finds the same order left it out. HOLDOUT
-    fitted at TRAIN's order gives the same phase and size: both effects are named."""
-    case = draw_case(164, 141)
-    assert sorted(case.truth) == ["stribeck_friction", "torque_ripple"]
-    train, holdout = (check_columns(simulate_case(case, k), "single", f"case 164 run {k}")
-                      for k in (0, 1))
-    result = diagnose(train, holdout)
-    assert sorted(result.verdict.split("+")) == ["stribeck_friction", "torque_ripple"], \
-        result.message
-    assert result.verdict_params["torque_ripple"]["N"] == case.effects["torque_ripple"]["N"]
