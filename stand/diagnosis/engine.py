@@ -15,20 +15,22 @@
    Stribeck friction nests Coulomb friction, wins over it when it is significant
    itself, i.e. when both runs resolve what it adds, unless the nested effect simulates
    HOLDOUT significantly better); then add further effects greedily while an addition
-   still improves HOLDOUT significantly; then judge each with the others in the model
-   (:mod:`.selection`).
+   still improves HOLDOUT significantly, the input reconstruction picked again on TRAIN
+   once the first effect is in (:mod:`.input_weight`); then judge each with the others in
+   the model (:mod:`.selection`).
 
 The effects and everything effect-specific come from the registry (:mod:`stand.effects`).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from stand import effects
-from stand.diagnosis.loop_input import PERIOD_MEAN_WEIGHT, loop_inputs
+from stand.diagnosis import input_weight
+from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
+from stand.diagnosis.loop_input import loop_inputs
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual
 from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
@@ -49,17 +51,13 @@ from stand.diagnosis.structure import MAX_PHASE_SHARE, along_travel_test, struct
 from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
-from stand.errors import InputError, NotExcitedError
+from stand.errors import InputError
 from stand.runfile import Run
 
 #: Free-run length between re-anchorings of the simulation, s.
 ANCHOR_HORIZON_S = 0.1
 #: Most effects combined in a verdict.
 MAX_EFFECTS = 3
-#: Input reconstructions tried for the nominal model (see ``ModelSpec.input_weight``).
-INPUT_WEIGHTS: tuple[float, ...] = (0.5, 0.625, 0.75, 0.875, 1.0)
-#: Halvings of the weight step around the best grid weight (to 1/64 of a period).
-WEIGHT_REFINEMENTS = 3
 
 
 @dataclass(frozen=True)
@@ -291,45 +289,9 @@ def _phase_note(share: float) -> list[str]:
 
 def _nominal_spec(on_train: Bench, spring: bool) -> ModelSpec:
     """The nominal model with the input reconstruction that simulates TRAIN best
-    (``on_train``: TRAIN against itself, :attr:`Bench.on_train`).
-
-    The weight is picked on the grid ``INPUT_WEIGHTS`` and then refined by halving the
-    step around the best one ``WEIGHT_REFINEMENTS`` times, within the grid's range. Where
-    in a sample period the drive's current changes (a current loop that follows a step
-    within a fraction of a period, a speed loop whose current moves all through it)
-    varies from stand to stand; an input off by a few hundredths of a period leaves a
-    structural error at every step of the current that effect candidates then absorb.
-
-    Reconstructions under which TRAIN gives no positive current gain are skipped (on a
-    run whose current moves in steps much faster than the shaft, a reconstruction off
-    by most of a sample can invert the fitted gain); if none gives one, the run is not
-    excited and :class:`~stand.errors.NotExcitedError` is raised.
-    """
-    gaps: dict[float, float] = {}
-    error: NotExcitedError | None = None
-
-    def gap(w: float) -> None:
-        nonlocal error
-        if w in gaps or not INPUT_WEIGHTS[0] <= w <= INPUT_WEIGHTS[-1]:
-            return
-        try:
-            gaps[w] = on_train.score(ModelSpec(input_weight=w, spring=spring)).gap
-        except NotExcitedError as exc:
-            gaps[w], error = math.inf, exc
-
-    for w in INPUT_WEIGHTS:
-        gap(w)
-    best = min(gaps, key=gaps.__getitem__)
-    if not math.isfinite(gaps[best]):
-        assert error is not None
-        raise error
-    step = (INPUT_WEIGHTS[1] - INPUT_WEIGHTS[0]) / 2
-    for _ in range(WEIGHT_REFINEMENTS):
-        gap(best - step)
-        gap(best + step)
-        best = min(gaps, key=gaps.__getitem__)
-        step /= 2
-    return ModelSpec(input_weight=best, spring=spring)
+    (``on_train``: TRAIN against itself, :attr:`Bench.on_train`;
+    :func:`stand.diagnosis.input_weight.pick`)."""
+    return input_weight.pick(on_train, ModelSpec(spring=spring))
 
 
 def _nominal_dict(model: FittedModel, kt: float | None) -> dict[str, float]:

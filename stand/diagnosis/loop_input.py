@@ -34,10 +34,6 @@ from stand.diagnosis.signals import Signals
 from stand.ident.speed_loop import TARGET_COLUMN, speed_loop, tracking_errors
 from stand.runfile import Run
 
-#: Input weight of a current that is already the mean over each period
-#: (:attr:`stand.diagnosis.model.ModelSpec.input_weight`).
-PERIOD_MEAN_WEIGHT = 0.0
-
 
 @dataclass(frozen=True)
 class LoopInput:
@@ -106,4 +102,4 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
                       "sampled current"))
 
 
-__all__ = ["PERIOD_MEAN_WEIGHT", "LoopInput", "loop_input", "loop_inputs"]
+__all__ = ["LoopInput", "loop_input", "loop_inputs"]

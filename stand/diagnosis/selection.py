@@ -5,6 +5,9 @@ backward pass that judges each chosen effect with the others in the model.
    nests Coulomb friction, wins over it when it is significant itself, unless the nested
    effect simulates HOLDOUT significantly better); then further effects greedily while
    an addition improves HOLDOUT significantly against the model holding the ones before.
+   Once the first effect is in, the input reconstruction (``input_weight``) is picked
+   again on TRAIN with it in the model (:func:`reweighted`) before further effects are
+   tried.
 2. With two or more effects, :func:`revise`: the friction form decided again beside the
    other effects, and an effect the joint model does not need dropped.
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from stand import effects
+from stand.diagnosis import input_weight
 from stand.diagnosis.report import EffectScore, SelectionStep
 from stand.diagnosis.scoring import Bench, Scored
 from stand.diagnosis.significance import PairedTest, paired_improvement
@@ -37,8 +41,9 @@ def select(bench: Bench, base: Scored, singles: dict[str, Scored],
                 and not improvement(singles[outer], singles[first]).significant(1)):
             first = outer
             break
-    chosen, current = [first], singles[first]
-    steps = [_step(first, [], base, current, scores[first].p_value)]
+    chosen, current = [first], reweighted(bench, singles[first])
+    steps = [_step(first, [], base, current, improvement(base, current).p_value
+                   if current is not singles[first] else scores[first].p_value)]
     while len(chosen) < max_effects:
         remaining = [n for n in effects.EFFECTS if n not in chosen
                      and not set(effects.nested_in(n)) & set(chosen)]
@@ -64,6 +69,17 @@ def select(bench: Bench, base: Scored, singles: dict[str, Scored],
             bench.revisions.extend(notes)
             return revised, final, steps
     return chosen, current, steps
+
+
+def reweighted(bench: Bench, scored: Scored) -> Scored:
+    """``scored`` with its input weight picked again on TRAIN with its effects in the
+    model (:mod:`stand.diagnosis.input_weight`: picked for the nominal model alone, the
+    weight is picked against the largest effect that model lacks); ``scored`` itself
+    when the weight stays."""
+    spec = input_weight.pick(bench.on_train, scored.spec)
+    if spec == scored.spec:
+        return scored
+    return replace(bench.score(spec), consistent=scored.consistent, looks=scored.looks)
 
 
 def revise(bench: Bench, chosen: list[str], current: Scored
@@ -166,4 +182,4 @@ def improvement(base: Scored, cand: Scored) -> PairedTest:
     return replace(test, p_value=min(1.0, test.p_value * cand.looks))
 
 
-__all__ = ["improvement", "revise", "select"]
+__all__ = ["improvement", "revise", "reweighted", "select"]

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from stand.cli import main
-from stand.diagnosis import diagnose, engine
+from stand.diagnosis import diagnose, input_weight
 from stand.diagnosis.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
 from stand.diagnosis.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
 from stand.diagnosis.signals import prepare, quantization_step
@@ -113,9 +113,9 @@ def test_input_weight_is_refined_between_grid_points(monkeypatch: pytest.MonkeyP
     sub-step ends, had a weight of 0.94, further from the grid, and gained more)."""
     runs = stand_runs({}, hold=(20, 25), dt_s=2.5e-3)
     refined = diagnose(*runs)
-    monkeypatch.setattr(engine, "WEIGHT_REFINEMENTS", 0)
+    monkeypatch.setattr(input_weight, "WEIGHT_REFINEMENTS", 0)
     coarse = diagnose(*runs)
-    assert refined.nominal["input_weight"] not in engine.INPUT_WEIGHTS
+    assert refined.nominal["input_weight"] not in input_weight.INPUT_WEIGHTS
     assert refined.gap_percent < 0.98 * coarse.gap_percent, (refined.gap_percent,
                                                              coarse.gap_percent)
 
