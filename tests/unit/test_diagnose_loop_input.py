@@ -79,7 +79,9 @@ def test_the_law_current_closes_the_gap_of_the_kicks(loop_runs: tuple[Run, Run])
     law_gap, law_kj = nominal(*loop_runs)
     plain_gap, plain_kj = nominal(*(_without_target(r) for r in loop_runs))
     truth = 0.05 / 2e-5
-    assert law_gap < 0.8 * plain_gap, (law_gap, plain_gap)
+    # 0.32 against 0.39 % on the plant that integrates the loop's current within each
+    # sub-step (the former 0.1 ms Euler plant made the sampled current's gap larger)
+    assert law_gap < 0.9 * plain_gap, (law_gap, plain_gap)
     assert abs(law_kj / truth - 1) < 0.02 < plain_kj / truth - 1, (law_kj, plain_kj)
 
 
