@@ -222,9 +222,14 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         if best is None or mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows))):
             best = (mean_square, delay, rows)
     if best is None:
+        smooth = int(np.count_nonzero(keep))
+        reason = (f"only {smooth} of {n} samples have a speed free of a target change "
+                  "around them (a target that changes at almost every sample, such as a "
+                  "sine, leaves no window without a kink; hold the target over a few "
+                  "samples)" if smooth < MIN_ROWS else
+                  "too few samples away from the current limit")
         return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
-                         "too few samples away from the current limit: the speed loop's "
-                         "gains cannot be fitted")
+                         f"{reason}: the speed loop's gains cannot be fitted")
     _, delay, rows = best
     y = current[rows + delay]
     plain, A, mean_square = weighted(rows, y, 3)

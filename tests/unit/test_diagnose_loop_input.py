@@ -125,3 +125,11 @@ def test_along_travel_test_is_not_run_where_the_passes_are_alike() -> None:
         if alike:
             assert result.test.p_value == 1.0 and not result.significant
 
+
+
+def test_a_sine_target_is_refused_for_its_kinks_not_the_current_limit() -> None:
+    # A target that changes at every sample leaves no angle window free of a kink; the
+    # refusal says so instead of blaming the current limit.
+    loop = speed_loop(_speed_sine(3, 60.0))
+    assert loop is not None and not loop.holds
+    assert "free of a target change" in loop.message and "current limit" not in loop.message
