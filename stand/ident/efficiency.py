@@ -36,10 +36,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import norm
-from scipy.stats import t as student_t
 
 from stand.diagnosis.signals import quantization_step
 from stand.errors import InputError, NotExcitedError
+from stand.ident.estimate import CONFIDENCE, t_quantile
 from stand.ident.noise import noise_sigma
 from stand.jsonable import JsonResult
 from stand.runfile import Run
@@ -54,8 +54,6 @@ SETTLE_FRACTION = 0.25
 MIN_PLATEAU_SAMPLES = 8
 #: Fewest load steps for a spread over the steps worth reporting without a warning.
 MIN_STEPS = 3
-#: Two-sided confidence level of ``efficiency_ci95``.
-CONFIDENCE = 0.95
 #: Encoder counts a shaft's reading may go back against its travel within a plateau: a
 #: reading that flips to the neighbouring count on either side of the true one spans two
 #: counts. Counts are the run's own encoder step (:func:`quantization_step`).
@@ -217,7 +215,7 @@ def efficiency(run: Run, ratio: float, k_in: float, k_out: float) -> EfficiencyR
     propagated = float(np.sqrt(np.sum((grad_in * se_in) ** 2 + (grad_out * se_out) ** 2)))
     scatter = float(np.std(etas, ddof=1) / np.sqrt(m)) if m > 1 else 0.0
     std = max(propagated, scatter)
-    quantile = (float(student_t.ppf(0.5 + CONFIDENCE / 2, m - 1)) if scatter > propagated
+    quantile = (t_quantile(m - 1) if scatter > propagated
                 else float(norm.ppf(0.5 + CONFIDENCE / 2)))
     eta = float(np.mean(etas))
     return EfficiencyResult(

@@ -95,10 +95,16 @@ class Estimate:
         return t_interval(sign * float(self.beta[k]), float(self.se[k]), self.dof)
 
 
+def t_quantile(dof: int) -> float:
+    """The quantile of Student's t with ``dof`` degrees of freedom that a two-sided
+    :data:`CONFIDENCE` interval reaches."""
+    return float(student_t.ppf(0.5 + CONFIDENCE / 2, dof))
+
+
 def t_interval(centre: float, se: float, dof: int) -> list[float]:
     """The :data:`CONFIDENCE` interval ``[low, high]`` of ``centre`` with standard error
     ``se``, Student's t with ``dof`` degrees of freedom."""
-    half = float(student_t.ppf(0.5 + CONFIDENCE / 2, dof)) * se
+    half = t_quantile(dof) * se
     return [centre - half, centre + half]
 
 

@@ -21,7 +21,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2
-from scipy.stats import t as student_t
 
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare, quantization_step
@@ -30,7 +29,7 @@ from stand.ident.checks import effect_params, run_warnings
 from stand.ident.closed_loop import ClosedLoopFit, fit_closed_loop
 from stand.ident.columns import TIMING_COLUMN, Design
 from stand.ident.derivatives import auto_half_width, state_derivatives
-from stand.ident.estimate import CONFIDENCE, Estimate, block_count, solve_blocks
+from stand.ident.estimate import Estimate, block_count, solve_blocks, t_quantile
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
 from stand.ident.select import Fitter, model_variance, parse_effects, select
@@ -283,23 +282,24 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
         estimator, spec, est = _pick_estimator(design, spec, est, run.source)
     spread = model_variance(fitter, chosen)
     est = est.with_variance("current", spread)
-    refined = _closed_loop(run, loop, spec, est, sigma) if loop is not None else None
-    if refined is not None and refined.holds:
-        # the effects are the equation error's choice: their models' spread stays
-        est = with_closed_loop(est, refined).with_variance("current", spread)
-    elif loop is not None and not loop.holds:
+    if loop is not None and not loop.holds:
+        # a refused law leaves the refinement no start it can be trusted to reach the loop from
         warnings.append(loop.message)
-    elif loop is not None and loop.holds:
-        if refined is not None:
-            warnings.append(refined.message)
-        if from_loop:
-            # Kt/J scales as 1/kp: kp's relative uncertainty is Kt/J's
-            est = est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
+    elif loop is not None:
+        refined = _closed_loop(run, loop, spec, est, sigma)
+        if refined.holds:
+            # the effects are the equation error's choice: their models' spread stays
+            est = with_closed_loop(est, refined).with_variance("current", spread)
         else:
-            warnings.append("the current reconstructed from the PI speed law fits the motion "
-                            "worse than the sampled current (the loop may saturate between "
-                            "samples): the sampled current is used, and Kt/J may be high by "
-                            "up to π·f_loop·Δt")
+            warnings.append(refined.message)
+            if from_loop:
+                # Kt/J scales as 1/kp: kp's relative uncertainty is Kt/J's
+                est = est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
+            else:
+                warnings.append("the current reconstructed from the PI speed law fits the "
+                                "motion worse than the sampled current (the loop may saturate "
+                                "between samples): the sampled current is used, and Kt/J may "
+                                "be high by up to π·f_loop·Δt")
     params = effect_params(spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes)
     timing = spec.delay + current_weight(spec, est)
@@ -308,12 +308,9 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
 
 
 def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
-                 sigma: float) -> ClosedLoopFit | None:
+                 sigma: float) -> ClosedLoopFit:
     """The output-error refinement of a speed-loop run whose loop law holds
-    (:mod:`stand.ident.closed_loop`), started from ``est``; else None (a refused law
-    leaves the simulation no start it can be trusted to reach the loop from)."""
-    if not loop.holds:
-        return None
+    (:mod:`stand.ident.closed_loop`), started from ``est``."""
     theta = run["position_rad"]
     names = [name for name in spec.names() if name not in ("current", "one")]
     start = np.array([est.value(name) for name in names])
@@ -327,8 +324,7 @@ def with_closed_loop(est: Estimate, fit: ClosedLoopFit) -> Estimate:
     scaled so that ``est``'s t quantile gives the fit's interval (no covariance with the
     other coefficients, which stay the equation error's)."""
     beta, cov = est.beta.copy(), est.cov.copy()
-    ratio = (student_t.ppf(0.5 + CONFIDENCE / 2, fit.dof)
-             / student_t.ppf(0.5 + CONFIDENCE / 2, est.dof)) ** 2
+    ratio = (t_quantile(fit.dof) / t_quantile(est.dof)) ** 2
     for name, value, se, sign in (("current", fit.Kt_over_J, fit.Kt_over_J_se, 1.0),
                                   ("omega", fit.D_over_J, fit.D_over_J_se, -1.0)):
         k = est.names.index(name)

@@ -238,10 +238,10 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
     kp, ki, c = (float(v) for v in plain)
     limited = np.flatnonzero(keep[:n - delay] & at_limit[delay:])
     beyond = np.abs(X[limited] @ lagged) > limit + LIMIT_SIGMAS * sigma
-    saturates = int(np.sum(beyond)) >= MIN_LIMIT_SAMPLES
+    limit_A = limit if int(np.sum(beyond)) >= MIN_LIMIT_SAMPLES else np.inf
     if not (kp > 0 and ratio <= MAX_RESIDUAL_RATIO):
         return SpeedLoop(kp, ki, c, delay, ratio, np.inf, np.empty(0),
-                         limit_A=limit if saturates else np.inf, message=
+                         limit_A=limit_A, message=
                          f"the PI speed law explains the current only to {ratio:.2g} times its "
                          f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
                          "saturates its voltage or follows another law, so the current between "
@@ -257,10 +257,8 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         kp, kp_other = float(lagged[0] + tau * lagged[1]), kp
         ki, c = float(lagged[1]), float(lagged[2])
     rel_sd = float(np.hypot(np.sqrt(cov[0, 0]) / kp, (kp_other - kp) / kp))
-    period = _period_current(theta, target, omega, error_int, dt, kp, ki, c,
-                             limit if saturates else np.inf)
-    return SpeedLoop(kp, ki, c, delay, ratio, rel_sd, period,
-                     limit_A=limit if saturates else np.inf)
+    period = _period_current(theta, target, omega, error_int, dt, kp, ki, c, limit_A)
+    return SpeedLoop(kp, ki, c, delay, ratio, rel_sd, period, limit_A=limit_A)
 
 
 def _period_current(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,

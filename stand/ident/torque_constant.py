@@ -31,12 +31,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import t as student_t
 
 from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES
 from stand.errors import InputError
 from stand.ident.derivatives import state_derivatives
-from stand.ident.estimate import CONFIDENCE, MIN_BLOCKS
+from stand.ident.estimate import MIN_BLOCKS, t_quantile
 from stand.ident.identify import IdentifyResult, identify_run
 from stand.ident.select import parse_effects
 from stand.jsonable import JsonResult
@@ -145,7 +144,7 @@ def kt_std_from_runs(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyRe
 
 def _interval(values: np.ndarray, std: float, dof: int) -> list[float]:
     """Mean of ``values`` ± t(dof)·std/√n."""
-    half = float(student_t.ppf(0.5 + CONFIDENCE / 2, dof)) * std / np.sqrt(len(values))
+    half = t_quantile(dof) * std / np.sqrt(len(values))
     centre = float(np.mean(values))
     return [centre - half, centre + half]
 
