@@ -167,7 +167,7 @@ class MotorPlant:
                                  self.armature.v, dt_s)
 
     def advance(self, dt_s: float) -> None:
-        """Advance the physics by ``dt_s`` seconds (see :func:`advance_shaft`)."""
+        """Advance the physics by ``dt_s`` seconds (the scheme: the module's docstring)."""
         n = substeps_for(dt_s)
         h = dt_s / n
         arm = self.armature
@@ -206,12 +206,11 @@ class MotorPlant:
             drive = Kt * gain
             if breakaway > 0.0:
                 theta_new, omega_new = _friction_substep(
-                    h, J, D, theta, omega, omega_m, drive, i_start, arm, load,
+                    h, J, damp, theta, omega, omega_m, drive, i_start, arm, load,
                     coulomb, excess, ws, breakaway)
             else:
-                omega_new = (omega * (1.0 - damp) + h * (drive * arm.i_mean - load) / J) / (1.0 + damp)
-                theta_new = (theta + 0.5 * h * (omega + omega_new)
-                             + 0.5 * h * h * drive * (arm.i_ramp - arm.i_mean) / J)
+                theta_new, omega_new = _slide(h, J, damp, theta, omega, drive, arm,
+                                              drive * arm.i_mean - load)
             accel = (omega_new - omega) / h
             theta, omega = theta_new, omega_new
         self.theta, self.omega, self.accel = theta, omega, accel
@@ -219,7 +218,20 @@ class MotorPlant:
         self.time_s += dt_s
 
 
-def _friction_substep(h: float, J: float, D: float, theta: float, omega: float,
+def _slide(h: float, J: float, damp: float, theta: float, omega: float, drive: float,
+           arm: Armature, force: float) -> tuple[float, float]:
+    """One sub-step of a shaft that keeps moving; return the new angle and speed.
+
+    ``force`` is the torque over the sub-step but the viscous damping (``damp`` =
+    ``h·D/(2J)``, trapezoidal), the motor's at the armature's mean current: the speed
+    takes it whole, the angle also the shape of the current within the sub-step (its
+    ramp-weighted mean against its mean, ``drive`` N·m/A)."""
+    omega_new = (omega * (1.0 - damp) + h * force / J) / (1.0 + damp)
+    return (theta + 0.5 * h * (omega + omega_new)
+            + 0.5 * h * h * drive * (arm.i_ramp - arm.i_mean) / J), omega_new
+
+
+def _friction_substep(h: float, J: float, damp: float, theta: float, omega: float,
                       omega_m: float, drive: float, i_start: float, arm: Armature,
                       load: float, coulomb: float, excess: float, ws: float,
                       breakaway: float) -> tuple[float, float]:
@@ -231,16 +243,15 @@ def _friction_substep(h: float, J: float, D: float, theta: float, omega: float,
     exceed the breakaway level. A sticking shaft breaks away where the torque, linear
     between the sub-step's ends, reaches that level.
     """
-    damp = 0.5 * h * D / J
     if omega != 0.0:
         level = coulomb
         if excess:
             level += excess * math.exp(-(omega_m / ws) ** 2)
-        force = drive * arm.i_mean - load - math.copysign(level, omega)
-        omega_new = (omega * (1.0 - damp) + h * force / J) / (1.0 + damp)
+        slid = _slide(h, J, damp, theta, omega, drive, arm,
+                      drive * arm.i_mean - load - math.copysign(level, omega))
+        omega_new = slid[1]
         if omega_new * omega >= 0.0:
-            return (theta + 0.5 * h * (omega + omega_new)
-                    + 0.5 * h * h * drive * (arm.i_ramp - arm.i_mean) / J), omega_new
+            return slid
         part = omega / (omega - omega_new)  # share of the sub-step before zero speed
         theta += 0.5 * part * h * omega
         rest = (1.0 - part) * h
