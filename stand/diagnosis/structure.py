@@ -194,6 +194,13 @@ def _periodic(theta: np.ndarray, sign: np.ndarray, order: float) -> np.ndarray:
 COLLINEAR_EIGENVALUE_SHARE = 1e-10
 
 
+def _span(x: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the span of ``x``'s columns, the directions whose squared
+    singular value is below :data:`COLLINEAR_EIGENVALUE_SHARE` of the largest left out."""
+    u, weight, _ = np.linalg.svd(x, full_matrices=False)
+    return u[:, weight > np.sqrt(COLLINEAR_EIGENVALUE_SHARE) * weight[0]]
+
+
 def _taken(x: np.ndarray, left: np.ndarray) -> float:
     """How much of ``left``'s sum of squares the columns ``x`` take by least squares
     (``leftᵀ·x·(xᵀx)⁺·xᵀ·left``), from the 4 × 4 Gram matrix: five times faster than a
@@ -244,9 +251,7 @@ def phase_share(sig: Signals, edge: slice, q: np.ndarray, order: float) -> float
     x = x - q @ (q.T @ x)
     knots = np.unique(np.quantile(sig.omega_f[edge], np.linspace(0.0, 1.0, SPEED_KNOTS)))
     phase = phase_terms(sig, knots)[edge]
-    phase = phase - q @ (q.T @ phase)
-    u, weight, _ = np.linalg.svd(phase, full_matrices=False)
-    basis = u[:, weight > np.sqrt(COLLINEAR_EIGENVALUE_SHARE) * weight[0]]
+    basis = _span(phase - q @ (q.T @ phase))
     total = float(np.sum(x * x))
     return float(np.sum((basis.T @ x) ** 2)) / total if total > 0 else 1.0
 
@@ -280,9 +285,7 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
     left = residual_train[edge] - n_tr[edge] @ null
     # an orthonormal basis of the nuisance columns' span (the speed terms repeat the
     # constant and the speed: directions of no weight are left out)
-    u, weight, _ = np.linalg.svd(
-        n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300), full_matrices=False)
-    q = u[:, weight > np.sqrt(COLLINEAR_EIGENVALUE_SHARE) * weight[0]]
+    q = _span(n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300))
     best, best_order = -1.0, None
     theta, sign = train.theta_f[edge], np.sign(train.omega_f)[edge]
     orders = _travel_orders(train)
