@@ -43,7 +43,7 @@ from bus.sync import (
     SyncWatch,
     check_time_mode,
 )
-from bus.trace import MasterNetwork
+from bus.trace import MasterNetwork, Trace
 from stand.errors import BusError, BusTimeout, InputError, StandError
 
 log = logging.getLogger(__name__)
@@ -165,12 +165,17 @@ class Master:
             raise InputError(f"node ids must differ, got {ids}")
         self.network.end_trace()
         if trace_path is not None:
-            self.network.start_trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ())
+            self._start_trace(trace_path)
         try:
             self._configure(drives, period_s, added_inertia_kgm2, window_us)
         except BaseException:
             self.network.end_trace()
             raise
+
+    def _start_trace(self, path: str | Path) -> Trace:
+        """Write every frame to the trace ``path`` from now on; where the bus hands the
+        master's SYNCs back, the echoes are the trace's SYNC frames (with their bus stamp)."""
+        return self.network.start_trace(path, (SYNC_COB_ID,) if self.sync_echo else ())
 
     def _configure(self, drives: Sequence[DriveConfig], period_s: float,
                    added_inertia_kgm2: float | None, window_us: int) -> None:
@@ -301,7 +306,7 @@ class Master:
         loop = RunLoop(self, targets, time_mode)
         trace = tracing
         if trace is None and trace_path is not None:
-            trace = self.network.start_trace(trace_path, (SYNC_COB_ID,) if self.sync_echo else ())
+            trace = self._start_trace(trace_path)
         self._sync_watch = loop.watch
         self.supervisor.expect_operational([d.id for d in self.drives])
         self._run_thread, self._stop_done = threading.get_ident(), threading.Event()

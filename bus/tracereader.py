@@ -309,11 +309,11 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
                         "the period when it is known")
         if not period > 0:
             raise InputError(f"{path}: one SYNC and no period; give the SYNC period")
-    units_from = {n: "given" if scaling is not None else "default" if _units(sdo.get(n, {})) is None
+    own_units = {n: _units(sdo.get(n, {})) for n in node_ids}
+    units_from = {n: "given" if scaling is not None else "default" if own_units[n] is None
                   else "sdo 0x6075 0x608F" for n in node_ids}
-    scalings = [scaling or _units(sdo.get(n, {})) or Scaling() for n in node_ids]
-    for n in node_ids:
-        units = _units(sdo.get(n, {}))
+    scalings = [scaling or own_units[n] or Scaling() for n in node_ids]
+    for n, units in own_units.items():
         if scaling is not None and units is not None and units != scaling:
             warnings.append(f"node {n}: the trace says {units.counts_per_rev} counts per revolution "
                             f"and {units.rated_current_A:g} A rated current (0x608F, 0x6075); the "
