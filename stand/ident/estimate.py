@@ -89,6 +89,13 @@ class Estimate:
         cov[k, k] += extra
         return replace(self, cov=cov)
 
+    def expanded(self, names: list[str], restriction: np.ndarray) -> Estimate:
+        """This estimate of a restricted fit (coefficients ``γ``, columns ``X·T``) as the
+        coefficients ``β = T·γ`` of the columns ``names`` of ``X``, with the covariance
+        ``T·V·Tᵀ`` (singular along the restriction)."""
+        T = np.asarray(restriction, dtype=float)
+        return replace(self, names=list(names), beta=T @ self.beta, cov=T @ self.cov @ T.T)
+
     def interval(self, name: str, sign: float = 1.0) -> list[float]:
         """95 % interval of ``sign·β[name]``, ``[low, high]``."""
         k = self.names.index(name)

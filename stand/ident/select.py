@@ -33,7 +33,7 @@ from stand.diagnosis.model import ModelSpec
 from stand.effects.coulomb_friction import CoulombFriction
 from stand.effects.current_offset import CurrentOffset
 from stand.errors import InputError, NotExcitedError
-from stand.ident.columns import Design
+from stand.ident.columns import RAMP_COLUMN, TIMING_COLUMN, Design
 from stand.ident.estimate import Estimate, block_count, solve_blocks
 
 #: Effects the identification model can hold (CONTRACT §3 vocabulary, backlash aside:
@@ -46,6 +46,8 @@ INPUT_WEIGHTS: tuple[float, ...] = (0.0, 0.5, 1.0)
 #: Level at which a competing model's larger held-out error rejects it (paired t over the
 #: blocks): models not rejected at this level enter the model uncertainty of Kt/J.
 COMPETITOR_ALPHA = 0.05
+#: Columns whose coefficient over the current's is a timing ``w`` within the period.
+TIMING_COLUMNS: tuple[str, ...] = (TIMING_COLUMN, RAMP_COLUMN)
 #: Least share of samples in the rarer direction for the shaft to count as reversing.
 MIN_REVERSE_SHARE = 0.02
 
@@ -153,7 +155,18 @@ class Fitter:
         noise = None
         if self.estimator == "bc":
             noise = self.design.noise_gram(spec, names, self.design.rows(spec, False))
-        return solve_blocks(names, y, X, Z, self.blocks, self.source, noise)
+        est = solve_blocks(names, y, X, Z, self.blocks, self.source, noise)
+        fixed: dict[str, float] = {}
+        while outside := _timing_outside(est, fixed):
+            # least squares under the bound 0 ≤ w ≤ 1: a timing beyond it is held at the
+            # bound (its column merged into the current's) and the others refitted
+            fixed.update(outside)
+            T = timing_restriction(names, fixed)
+            kept = [n for n in names if n not in fixed]
+            restricted = solve_blocks(kept, y, X @ T, Z @ T, self.blocks, self.source,
+                                      None if noise is None else T.T @ noise @ T)
+            est = restricted.expanded(names, T)
+        return est
 
     def best(self, specs: list[ModelSpec]) -> tuple[ModelSpec, Estimate] | None:
         """The spec of least total held-out error (``None`` if none can be fitted)."""
@@ -166,6 +179,42 @@ class Fitter:
             if found is None or est.cv_sse.sum() < found[1].cv_sse.sum():
                 found = (spec, est)
         return found
+
+
+def _timing_outside(est: Estimate, fixed: dict[str, float]) -> dict[str, float]:
+    """The timing columns of ``est`` (not yet ``fixed``) whose share ``w`` of the period
+    lies outside ``[0, 1]``, each with the bound it is to be held at.
+
+    A current loop settles within the period after its sample, so its timing ``w`` (the
+    coefficient of :data:`~stand.ident.columns.TIMING_COLUMN` or
+    :data:`~stand.ident.columns.RAMP_COLUMN` over that of the current) is ``1 − τ/Δt``
+    for a loop of time constant ``τ`` ≤ Δt: ``w < 0`` would read the current before its
+    own sample was taken, ``w > 1`` after the next one.
+    """
+    if "current" not in est.names or not est.value("current") > 0:
+        return {}
+    out = {}
+    for name in TIMING_COLUMNS:
+        if name in est.names and name not in fixed:
+            w = est.value(name) / est.value("current")
+            if not 0.0 <= w <= 1.0:
+                out[name] = float(np.clip(w, 0.0, 1.0))
+    return out
+
+
+def timing_restriction(names: list[str], fixed: dict[str, float]) -> np.ndarray:
+    """``T`` with ``β = T·γ`` for the columns ``names`` when each timing column of
+    ``fixed`` has the coefficient ``w·β_current``: the restricted fit's columns are
+    ``X·T`` (the current's column plus ``w`` times each fixed timing column, the others
+    as they are)."""
+    kept = [n for n in names if n not in fixed]
+    T = np.zeros((len(names), len(kept)))
+    for j, name in enumerate(kept):
+        T[names.index(name), j] = 1.0
+    current = kept.index("current")
+    for name, w in fixed.items():
+        T[names.index(name), current] = w
+    return T
 
 
 def _candidates(design: Design, spec: ModelSpec, name: str) -> list[ModelSpec]:
@@ -343,4 +392,22 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
         if best is None:
             return Selection(spec, chosen, est, notes, pool)
         chosen.append(best[0])
-        spec, est = best[1], best[2]
+        spec, est = _revisit_current_timing(fitter, best[1], best[2], chosen)
+
+
+def _revisit_current_timing(fitter: Fitter, spec: ModelSpec, est: Estimate,
+                            chosen: list[str]) -> tuple[ModelSpec, Estimate]:
+    """``spec`` with the grid value of each chosen effect that moves the current (the
+    delay) picked again, by the held-out error, now that ``chosen[-1]`` is in the model.
+
+    With the timing ``w`` bounded to the period, a delay of ``k`` at ``w`` = 1 and one of
+    ``k + 1`` at ``w`` = 0 read the current at nearly the same instant, and which of the
+    two fits better can change once another effect takes its part of the motion: a delay
+    admitted before that effect keeps its value only if it is still the best.
+    """
+    for name in chosen[:-1]:
+        if effect_registry.get(name).moves_the_current:
+            found = fitter.best(_candidates(fitter.design, spec, name))
+            if found is not None and found[1].cv_sse.sum() < est.cv_sse.sum():
+                spec, est = found
+    return spec, est
