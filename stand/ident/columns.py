@@ -17,10 +17,12 @@ settling on a held reference leaves each period's deficit ``(1 − w)·Δi`` nea
 period's start, not spread over it (:meth:`Design._settling`): the same velocity, but the
 angle differs by ``(Kt/J)·(1 − w)·Δi·Δt²/2``.
 
-Every column is passed through the same kernel as the angle
-(:mod:`stand.ident.derivatives`), so the filtered signals obey the same equation. A
-column held over each period (the current, the period means of ``sin Nθ``) goes through
-the continuous kernel period by period (:func:`~stand.ident.derivatives.filter_held`);
+Every column is passed through the kernel that the sampled second-derivative kernel
+applies to the acceleration (:func:`~stand.ident.derivatives.acceleration_kernel`, the
+sampled sum written as an integral over the acceleration), so the filtered signals obey
+the same equation. A column held over each period (the current, the period means of
+``sin Nθ``) goes through it period by period
+(:func:`~stand.ident.derivatives.filter_held`);
 the friction columns are period means too (of ``sign θ'`` at points within the period,
 from a velocity that keeps each period's mean ``Δθ/Δt``, :meth:`Design.omega_within`).
 
@@ -50,7 +52,13 @@ from stand.diagnosis.model import (
     velocity_sign,
 )
 from stand.diagnosis.signals import Signals
-from stand.ident.derivatives import _convolve_valid, filter_held, interval_weights, kernel
+from stand.ident.derivatives import (
+    _convolve_valid,
+    acceleration_interval_weights,
+    acceleration_kernel,
+    filter_held,
+    kernel,
+)
 from stand.ident.noise import noise_sigma, noise_variance_uncertainty, passband_noise
 
 #: Points per sample period at which the friction columns are averaged.
@@ -158,7 +166,15 @@ class Design:
 
     @classmethod
     def build(cls, sig: Signals, half_width: int, lag: int) -> Design:
-        """Filter the angle of ``sig`` with the kernel of ``half_width`` samples."""
+        """Filter the angle of ``sig`` with the kernel of ``half_width`` samples.
+
+        The input columns are filtered as the sampled second-derivative kernel filters
+        the acceleration (:meth:`filt`); the angle and the velocity (the spring and
+        damping columns) keep the sampled kernel and its derivative: the velocity filtered
+        as the acceleration is needs the angle's mean over each period, and its mean of
+        the end samples misses ``Δt²·θ''/12``, more than the sampled derivative misses
+        (Kt/J −0.008 % against −0.002 % on a noise-free stand with ``Δt·D/J`` = 0.04).
+        """
         g, g1, g2 = kernel(half_width, sig.dt_s)
         theta, omega, alpha = (_convolve_valid(sig.theta, w, sig.dt_s) for w in (g, g1, g2))
         return cls(sig, half_width, lag, theta, omega, alpha)
@@ -166,10 +182,10 @@ class Design:
     def filt(self, values: np.ndarray, held: bool = True) -> np.ndarray:
         """``values`` through the kernel, on the rows of the design; ``held``: each value
         holds over the period after its sample."""
+        h, dt = self.half_width, self.sig.dt_s
         if held:
-            return filter_held(values, self.half_width, self.sig.dt_s)
-        g, _, _ = kernel(self.half_width, self.sig.dt_s)
-        return _convolve_valid(values, g, self.sig.dt_s)
+            return filter_held(values, h, dt, acceleration_interval_weights(h, dt))
+        return _convolve_valid(values, acceleration_kernel(h, dt), dt)
 
     def current(self, spec: ModelSpec, instrument: bool) -> np.ndarray:
         """Current at the model's timing, unfiltered (the lagged mean for the instrument)."""
@@ -244,31 +260,40 @@ class Design:
         """The timing column carries the current loop's settling (see :meth:`_settling`)."""
         return SETTLING_AT_START and TIMING_COLUMN in names and spec.input_weight == 0.0
 
-    def _settling(self, spec: ModelSpec, instrument: bool) -> np.ndarray:
+    def _settling(self, spec: ModelSpec, instrument: bool, share: float = 0.0) -> np.ndarray:
         """The timing column as the settling of a fast current loop: each period's
-        change ``i[n+k+1] − i[n+k]`` as an impulse at the period's start, cached.
+        change ``i[n+k+1] − i[n+k]`` as an impulse ``share`` of a period after the
+        period's start (the columns for 0 and 1 cached).
 
         A first-order loop (``τ`` ≪ Δt) settling on a held reference gives over the
         period ``i[n+1] − (i[n+1] − i[n])·e^(−s/τ)``: the period's end value held, less a
-        deficit of area ``(1 − w)·Δt·Δi`` (``w = 1 − τ/Δt``) concentrated within ``τ`` of
-        the period's start. Held over the whole period instead, the deficit sits half a
-        period late: the velocity is the same but the angle is not. Through the kernel the
-        deficit is ``(1 − w)·Δt·Δi·g(t − t_n)``: with the current held at ``w = 1`` and
-        this column (coefficient ``(Kt/J)·w``) the model is ``(Kt/J)·[held(w = 1) −
-        impulse + w·impulse]``.
+        deficit of area ``(1 − w)·Δt·Δi`` (``w = 1 − τ/Δt``) within a few ``τ`` of the
+        period's start, its centroid ``τ`` after it. Held over the whole period instead,
+        the deficit sits half a period late: the velocity is the same but the angle is
+        not. Through the kernel ``K`` (:meth:`filt`), linear between the sample instants,
+        the deficit is exactly ``(1 − w)·Δt·Δi·K(t − t_n − τ)``, the interpolation of the
+        impulses at ``t_n`` and ``t_{n+1}`` with the ``share`` ``τ/Δt`` (the fit takes it
+        as ``1 − w`` of a first pass, :class:`~stand.ident.select.Fitter`). With the
+        current held at ``w = 1`` and this column (coefficient ``(Kt/J)·w``) the model is
+        ``(Kt/J)·[held(w = 1) − impulse + w·impulse]``.
         """
         key = ("settling", instrument, spec.delay)
         if key not in self.cache:
             raw = self._raw(spec, TIMING_COLUMN, instrument)
-            self.cache[key] = self.filt(raw, held=False)
-        return np.asarray(self.cache[key])
+            later = np.concatenate([[0.0], raw[:-1]])
+            self.cache[key] = np.stack([self.filt(raw, held=False),
+                                        self.filt(later, held=False)])
+        at_start, next_start = self.cache[key]
+        return np.asarray((1.0 - share) * at_start + share * next_start)
 
-    def _settling_weights(self) -> np.ndarray:
+    def _settling_weights(self, share: float = 0.0) -> np.ndarray:
         """Weight of each current sample in :meth:`_settling` (as :meth:`noise_weights`)."""
-        g, _, _ = kernel(self.half_width, self.sig.dt_s)
+        g = acceleration_kernel(self.half_width, self.sig.dt_s)
         zero = np.zeros(1)
-        return np.asarray(self.sig.dt_s * (np.concatenate([g, zero, zero])
-                                           - np.concatenate([zero, g, zero])))
+        at_start = self.sig.dt_s * (np.concatenate([g, zero, zero])
+                                    - np.concatenate([zero, g, zero]))
+        next_start = np.concatenate([zero, at_start[:-1]])
+        return np.asarray((1.0 - share) * at_start + share * next_start)
 
     def ramp_mask(self, delay: int, ramp: bool) -> np.ndarray:
         """1 on the periods whose current change goes on into the next period beyond the
@@ -290,7 +315,7 @@ class Design:
     def noise_weights(self, weight: float = 0.5) -> np.ndarray:
         """Weight of each current sample in the filtered held current of ``input_weight``
         ``weight`` (the kernel's period integrals, :func:`interval_weights`)."""
-        weights = interval_weights(self.half_width, self.sig.dt_s)
+        weights = acceleration_interval_weights(self.half_width, self.sig.dt_s)
         return np.asarray((1 - weight) * np.concatenate([[0.0], weights])
                           + weight * np.concatenate([weights, [0.0]]))
 
@@ -327,7 +352,8 @@ class Design:
         variance, uncertainty = self.noise_level()
         return variance * float(np.sum(self.noise_weights(weight) ** 2)), uncertainty
 
-    def noise_gram(self, spec: ModelSpec, names: list[str], rows: slice) -> np.ndarray:
+    def noise_gram(self, spec: ModelSpec, names: list[str], rows: slice,
+                   settling_share: float = 0.0) -> np.ndarray:
         """What the current noise adds to ``XᵀX`` of ``matrices(spec, False, timing)``.
 
         The noise of a current column ``j`` is ``Σ_s e_j[s]·n[s]·m_j`` with ``e_j`` the
@@ -348,9 +374,10 @@ class Design:
                 sources[name] = [(own, ones)]
                 if settles:
                     mask = self.ramp_mask(spec.delay, False)
-                    sources[name].append((step - self._settling_weights(), mask))
+                    sources[name].append((step - self._settling_weights(settling_share), mask))
             elif name == TIMING_COLUMN and settles:
-                sources[name] = [(self._settling_weights(), self.ramp_mask(spec.delay, False))]
+                sources[name] = [(self._settling_weights(settling_share),
+                                  self.ramp_mask(spec.delay, False))]
             elif name in (TIMING_COLUMN, RAMP_COLUMN):
                 sources[name] = [(step, self.ramp_mask(spec.delay, name == RAMP_COLUMN))]
             elif name in RIPPLE_COLUMNS:
@@ -373,7 +400,8 @@ class Design:
         lag = self.lag if instrumented else 0
         return slice(lag, len(self.alpha) - max(lag, spec.delay))
 
-    def matrices(self, spec: ModelSpec, instrumented: bool = True, timing: bool = False
+    def matrices(self, spec: ModelSpec, instrumented: bool = True, timing: bool = False,
+                 settling_share: float = 0.0
                  ) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
         """Names, output ``y = θ''``, regressors ``X`` and instruments ``Z`` of ``spec``.
 
@@ -386,7 +414,8 @@ class Design:
         the period at a time of its own: a first-order loop of time constant ``τ`` gives
         the period mean ``w = 1 − τ/Δt``, which the grid of 0, ½, 1 would miss). Where
         the current ramps on into the next period (:meth:`ramp_mask`), its change is the
-        :data:`RAMP_COLUMN` instead, with a ``w`` of its own.
+        :data:`RAMP_COLUMN` instead, with a ``w`` of its own. ``settling_share``: where
+        in the period the timing column places the loop's settling (:meth:`_settling`).
         """
         inputs = spec.names()
         if timing:
@@ -401,11 +430,11 @@ class Design:
                 return motion[name]
             if self._settles(spec, names):
                 if name == TIMING_COLUMN:
-                    return self._settling(spec, instrument)
+                    return self._settling(spec, instrument, settling_share)
                 if name == "current":  # held at the period's end, less the settling
                     return (self.column(spec, name, instrument)
                             + self.column(spec, TIMING_COLUMN, instrument)
-                            - self._settling(spec, instrument))
+                            - self._settling(spec, instrument, settling_share))
                 if name in RIPPLE_COLUMNS:
                     return self.column(replace(spec, input_weight=1.0), name, instrument)
             return self.column(spec, name, instrument)

@@ -133,11 +133,44 @@ def interval_weights(half_width: int, dt_s: float) -> np.ndarray:
     return np.asarray(raw / (g_raw.sum() * dt_s))
 
 
-def filter_held(values: np.ndarray, half_width: int, dt_s: float) -> np.ndarray:
+def acceleration_kernel(half_width: int, dt_s: float) -> np.ndarray:
+    """What the sampled second-derivative kernel makes of the acceleration, at the knots.
+
+    The filtered acceleration is a sum over the samples, ``α_f(t_n) = Σ_k g2[k]·Δt·θ(t_n −
+    kΔt)``, not the integral ``∫ g(s)·θ''(t_n − s) ds`` it approximates. Writing
+    ``θ(t) = θ(t₀) + θ'(t₀)·(t − t₀) + ∫ (t − u)₊·θ''(u) du`` (the first two terms vanish
+    under the kernel's moments) gives, for any motion, ``α_f(t_n) = ∫ K(s)·θ''(t_n − s) ds``
+    with ``K(s) = Σ_k g2[k]·Δt·(s − kΔt)₊``: piecewise linear between the sample instants,
+    zero outside ``(−h, h + 1)·Δt``, of unit area. Filtering the model's torques with
+    ``K`` instead of ``g`` makes the filtered equation hold exactly where the acceleration
+    is held over each period; with ``g`` the difference is of order ``(Δt/T)³`` of the
+    current's steps (Kt/J +0.02–0.03 % at ``h`` = 8 on a noise-free, unquantized PRBS).
+
+    Returns
+    -------
+    ndarray, shape (2·half_width + 1,)
+        ``K(jΔt)`` for ``j = −half_width … half_width``, 1/s (``K`` is zero at the ends of
+        its support).
+    """
+    _, _, g2 = kernel(half_width, dt_s)
+    k = np.arange(-half_width, half_width + 1)
+    s = np.arange(-half_width, half_width + 1)
+    return np.asarray([np.sum(g2 * dt_s * np.maximum(j - k, 0) * dt_s) for j in s])
+
+
+def acceleration_interval_weights(half_width: int, dt_s: float) -> np.ndarray:
+    """:func:`interval_weights` of :func:`acceleration_kernel`: ``∫ K(s) ds`` over
+    ``((j − 1)·Δt, j·Δt)``, ``j = −half_width … half_width + 1`` (``K`` is linear there)."""
+    knots = np.concatenate([[0.0], acceleration_kernel(half_width, dt_s), [0.0]])
+    return np.asarray(0.5 * dt_s * (knots[:-1] + knots[1:]))
+
+
+def filter_held(values: np.ndarray, half_width: int, dt_s: float,
+                weights: np.ndarray | None = None) -> np.ndarray:
     """Values held over each period (``values[k]`` from sample ``k`` to ``k + 1``) through
-    the continuous default kernel, at the samples where the kernel fits (as
-    :func:`_convolve_valid`)."""
-    w = interval_weights(half_width, dt_s)            # j = −h … h + 1
+    the continuous default kernel (or the period ``weights`` given, ``j = −h … h + 1``),
+    at the samples where the kernel fits (as :func:`_convolve_valid`)."""
+    w = interval_weights(half_width, dt_s) if weights is None else weights  # j = −h … h + 1
     v = np.concatenate([values[:1], values])           # v[−1] taken as v[0]
     n = len(values)
     out = np.zeros(n - 2 * half_width)

@@ -150,11 +150,23 @@ class Fitter:
         return found
 
     def _fit(self, spec: ModelSpec) -> Estimate:
+        """Fit ``spec``; with the timing fitted, twice: the settling placed at the
+        period's start, then ``1 − w`` of a period after it (the centroid of a
+        first-order loop's deficit, :meth:`Design._settling`)."""
+        est = self._solve(spec, 0.0)
+        if self.timing and spec.input_weight == 0.0 and TIMING_COLUMN in est.names:
+            share = 1.0 - est.value(TIMING_COLUMN) / est.value("current")
+            if 0.0 < share <= 1.0:
+                est = self._solve(spec, share)
+        return est
+
+    def _solve(self, spec: ModelSpec, settling_share: float) -> Estimate:
         iv = self.estimator == "iv"
-        names, y, X, Z = self.design.matrices(spec, iv, self.timing)
+        names, y, X, Z = self.design.matrices(spec, iv, self.timing, settling_share)
         noise = None
         if self.estimator == "bc":
-            noise = self.design.noise_gram(spec, names, self.design.rows(spec, False))
+            noise = self.design.noise_gram(spec, names, self.design.rows(spec, False),
+                                           settling_share)
         est = solve_blocks(names, y, X, Z, self.blocks, self.source, noise)
         fixed: dict[str, float] = {}
         while outside := _timing_outside(est, fixed):
