@@ -314,7 +314,8 @@ class Design:
 
     def noise_weights(self, weight: float = 0.5) -> np.ndarray:
         """Weight of each current sample in the filtered held current of ``input_weight``
-        ``weight`` (the kernel's period integrals, :func:`interval_weights`)."""
+        ``weight`` (the period integrals of the columns' kernel,
+        :func:`~stand.ident.derivatives.acceleration_interval_weights`)."""
         weights = acceleration_interval_weights(self.half_width, self.sig.dt_s)
         return np.asarray((1 - weight) * np.concatenate([[0.0], weights])
                           + weight * np.concatenate([weights, [0.0]]))

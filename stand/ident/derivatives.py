@@ -153,9 +153,8 @@ def acceleration_kernel(half_width: int, dt_s: float) -> np.ndarray:
         its support).
     """
     _, _, g2 = kernel(half_width, dt_s)
-    k = np.arange(-half_width, half_width + 1)
-    s = np.arange(-half_width, half_width + 1)
-    return np.asarray([np.sum(g2 * dt_s * np.maximum(j - k, 0) * dt_s) for j in s])
+    knots = np.arange(-half_width, half_width + 1)
+    return np.asarray([np.sum(g2 * dt_s * np.maximum(j - knots, 0) * dt_s) for j in knots])
 
 
 def acceleration_interval_weights(half_width: int, dt_s: float) -> np.ndarray:
