@@ -169,7 +169,11 @@ class Fitter:
                                            settling_share)
         est = solve_blocks(names, y, X, Z, self.blocks, self.source, noise)
         fixed: dict[str, float] = {}
-        while outside := _timing_outside(est, fixed):
+        # with a delay k ≥ 1, a timing w < 0 is the delay k − 1 read later in its period
+        # (a spurious delay); without one it is a current read after the encoder's sample
+        # (EMPS: w = −1.2, the force computed after the position is latched), kept
+        lowest = 0.0 if spec.delay else -np.inf
+        while outside := _timing_outside(est, fixed, lowest):
             # least squares under the bound 0 ≤ w ≤ 1: a timing beyond it is held at the
             # bound (its column merged into the current's) and the others refitted
             fixed.update(outside)
@@ -193,9 +197,10 @@ class Fitter:
         return found
 
 
-def _timing_outside(est: Estimate, fixed: dict[str, float]) -> dict[str, float]:
+def _timing_outside(est: Estimate, fixed: dict[str, float],
+                    lowest: float = 0.0) -> dict[str, float]:
     """The timing columns of ``est`` (not yet ``fixed``) whose share ``w`` of the period
-    lies outside ``[0, 1]``, each with the bound it is to be held at.
+    lies outside ``[lowest, 1]``, each with the bound it is to be held at.
 
     A current loop settles within the period after its sample, so its timing ``w`` (the
     coefficient of :data:`~stand.ident.columns.TIMING_COLUMN` or
@@ -209,8 +214,8 @@ def _timing_outside(est: Estimate, fixed: dict[str, float]) -> dict[str, float]:
     for name in TIMING_COLUMNS:
         if name in est.names and name not in fixed:
             w = est.value(name) / est.value("current")
-            if not 0.0 <= w <= 1.0:
-                out[name] = float(np.clip(w, 0.0, 1.0))
+            if not lowest <= w <= 1.0:
+                out[name] = float(np.clip(w, lowest, 1.0))
     return out
 
 
