@@ -32,7 +32,7 @@ from stand.ident.derivatives import auto_half_width, state_derivatives
 from stand.ident.estimate import Estimate, block_count, solve_blocks, t_quantile
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
-from stand.ident.select import Fitter, model_variance, parse_effects, select
+from stand.ident.select import Fitter, model_disagreement, model_variance, parse_effects, select
 from stand.ident.speed_loop import TARGET_COLUMN, SpeedLoop, fit_speed_loop, speed_loop
 from stand.ident.supply import DriveSupply
 from stand.jsonable import JsonResult
@@ -291,9 +291,15 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     spread = model_variance(fitter, chosen)
     est = est.with_variance("current", spread)
     refined = _closed_loop(run, loop, spec, est, sigma, supply) if loop is not None else None
-    if refined is not None and refined.holds:
+    if loop is not None and refined is not None and refined.holds:
         # the effects are the equation error's choice: their models' spread stays
+        law = (est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
+               if from_loop else None)
         est = with_closed_loop(est, refined).with_variance("current", spread)
+        if law is not None:
+            # the law's equation error and the simulation model the loop differently;
+            # where both hold, Kt/J is known no better than they agree
+            est = est.with_variance("current", model_disagreement(law, est, "current"))
     elif loop is not None and not loop.holds:
         warnings.append(loop.message)
         if refined is not None:

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from stand.cli import main, options
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.signals import quantization_step
-from stand.cli import main, options
 from stand.errors import InputError
 from stand.excitation import excitation
 from stand.ident import closed_loop
