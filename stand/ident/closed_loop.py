@@ -40,6 +40,7 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
+from scipy.stats import chi2
 
 from stand.diagnosis.model import ModelSpec, periodic_mean
 from stand.ident.estimate import BLOCKS, t_interval
@@ -63,7 +64,7 @@ DIVERGED_RESIDUAL = 1e6
 MAX_MODE_CONDITION = 1e8
 #: Most evaluations per parameter and one where the drive's supply is modelled (each
 #: steps through the mode switches; the fit starts from the one without the supply).
-SUPPLY_STEPS = 10
+SUPPLY_STEPS = 5
 #: Sub-steps of a period within which the drive's mode changes (the current command
 #: reaches or leaves its limit, the needed voltage the supply).
 CLIP_SUBSTEPS = 16
@@ -474,9 +475,11 @@ def fit_closed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray, 
     armature = np.log([supply.supply_V / supply.L, supply.R / supply.L, supply.Kt / supply.L])
     start = np.concatenate([start, armature, [limit] if np.isfinite(limit) else []])
     if not saturated:
-        # refitted only where the loop leaves its law somewhere along the fitted motion
-        b = supplied._bounds(start)
-        if np.all(supplied.mode_of(model.states(p)[:-1], supplied.u[:, 0], b) == LAW):
+        # refitted only where the supply changes the fitted motion beyond what the noise
+        # tells apart: the weighted sum of squares moves by more than the 95 % point of
+        # χ² with one degree of freedom per added parameter
+        moved = abs(float(np.sum(supplied.residuals(start) ** 2) - np.sum(model.residuals(p) ** 2)))
+        if moved <= chi2.ppf(0.95, len(start) - len(p)):
             return fit
     return _solve(supplied, start, dt, SUPPLY_STEPS)[0]
 

@@ -237,15 +237,14 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         if len(rows) < MIN_ROWS:
             continue
         if trim:
-            # the delay at which the law explains the most samples within their noise
             rows = trimmed(rows, delay)
-            if best is None or len(rows) > len(best[2]):
-                best = (0.0, delay, rows)
-            continue
         mean_square = weighted(rows, current[rows + delay], 4)[2]
         # a longer delay must fit better beyond the sampling error of a mean square
-        # (relative standard deviation √(2/rows)), else the shorter one stays
-        if best is None or mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows))):
+        # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed, it
+        # must also explain as many samples
+        if best is None or (
+                mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
+                and (not trim or len(rows) >= len(best[2]))):
             best = (mean_square, delay, rows)
     if best is None:
         smooth = int(np.count_nonzero(keep))
