@@ -44,7 +44,7 @@ from scipy.stats import chi2
 
 from stand.diagnosis.model import ModelSpec, periodic_mean
 from stand.ident.estimate import BLOCKS, t_interval
-from stand.ident.speed_loop import SpeedLoop
+from stand.ident.speed_loop import DELAY_SIGMAS, SpeedLoop
 from stand.ident.supply import DriveSupply
 
 #: Start value of the drive's lag τ, s (a current loop of a few kHz).
@@ -378,13 +378,15 @@ class _LoopModel:
         grow = np.exp(lam)
         small = np.abs(lam) < 1e-8
         phi1 = np.where(small, 1.0 + lam / 2, (grow - 1.0) / np.where(small, 1.0, lam))
-        drive = u @ ((phi1[:, None] * mode.VinvB) * self.dt).T
+        gain = ((phi1[:, None] * mode.VinvB) * self.dt).T
+        drive = u @ gain.real + 1j * (u @ gain.imag)
         z0 = mode.Vinv @ x0
         z = np.empty((count, 4), dtype=complex)
         for c in range(4):
             z[:, c] = lfilter([1.0], [1.0, -grow[c]], drive[:, c],
                               zi=np.array([grow[c] * z0[c]]))[0]
-        return np.real(z @ mode.V.T)
+        # the real part of z·Vᵀ (numpy's complex matrix product is far slower)
+        return np.asarray(z.real @ mode.V.real.T - z.imag @ mode.V.imag.T)
 
     def residuals(self, p: np.ndarray) -> np.ndarray:
         """Weighted residuals: angle rows (the encoder read ``δ`` s from the sample
@@ -481,7 +483,36 @@ def fit_closed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray, 
         moved = abs(float(np.sum(supplied.residuals(start) ** 2) - np.sum(model.residuals(p) ** 2)))
         if moved <= chi2.ppf(0.95, len(start) - len(p)):
             return fit
-    return _solve(supplied, start, dt, SUPPLY_STEPS)[0]
+    fit, p = _solve(supplied, start, dt, SUPPLY_STEPS)
+    if saturated and loop.delay > 0:
+        # a drive whose supply slows its current looks delayed to the law: the delay of
+        # the law trimmed of the saturated samples must beat none in the simulation too
+        undelayed = _LoopModel(measured, current, target, inputs, dt, 0, angle_sd,
+                               current_sd, bool(np.isfinite(limit)), True)
+        start[9] = current[0]
+        fit0, p0 = _solve(undelayed, start, dt, SUPPLY_STEPS)
+        if not _fits_better(supplied, p, undelayed, p0):
+            return fit0
+    return fit
+
+
+def _fits_better(model: _LoopModel, p: np.ndarray, other: _LoopModel,
+                 q: np.ndarray) -> bool:
+    """``model`` at ``p`` explains the run better than ``other`` at ``q``: the paired
+    difference of their squared residuals, summed over each of ``BLOCKS`` contiguous
+    blocks of samples (those both models have rows for), is positive by a t test over
+    the blocks beyond ``DELAY_SIGMAS`` (non-nested models of as many parameters)."""
+    last = min(model.rows, other.rows)
+    edges = np.linspace(0, last, BLOCKS + 1)
+    sums = []
+    for m, params in ((model, p), (other, q)):
+        rows = m.sample_of_row()
+        keep = rows < last
+        block = np.searchsorted(edges, rows[keep], side="right") - 1
+        sums.append(np.bincount(block, m.residuals(params)[keep] ** 2, minlength=BLOCKS))
+    gain = sums[1] - sums[0]
+    se = gain.std(ddof=1) / np.sqrt(BLOCKS)
+    return bool(gain.mean() > DELAY_SIGMAS * se)
 
 
 def _solve(model: _LoopModel, start: np.ndarray, dt: float,

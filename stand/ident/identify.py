@@ -43,6 +43,13 @@ ESTIMATORS: tuple[str, ...] = ("auto", "iv", "bc", "ls")
 #: Lag of the current instruments beyond the kernel's support, samples.
 INSTRUMENT_MARGIN = 1
 
+#: Warning of a speed-loop run whose law holds but for some samples (those where the
+#: drive's voltage runs out) when the drive's supply is not known.
+SUPPLY_UNKNOWN = ("the PI speed law explains the current only outside some stretches, as on a "
+                  "drive whose supply voltage cannot follow the loop's kicks: the supply could "
+                  "not be modelled (tell the drive's supply, R and L: --motor PROFILE), so the "
+                  "output-error refinement is not used and Kt/J may be biased")
+
 #: Blocks the current is split into to test that it varies beyond its noise.
 EXCITATION_BLOCKS = 20
 #: Significance level of that test: a current whose block means vary no more than white
@@ -290,7 +297,7 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
         estimator, spec, est = _pick_estimator(design, spec, est, run.source)
     spread = model_variance(fitter, chosen)
     est = est.with_variance("current", spread)
-    refined = _closed_loop(run, loop, spec, est, sigma, supply) if loop is not None else None
+    refined = _closed_loop(run, loop, spec, est, sigma, supply, warnings) if loop is not None else None
     if loop is not None and refined is not None and refined.holds:
         # the effects are the equation error's choice: their models' spread stays
         law = (est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
@@ -323,21 +330,24 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
 
 
 def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
-                 sigma: float, supply: DriveSupply | None) -> ClosedLoopFit | None:
+                 sigma: float, supply: DriveSupply | None,
+                 warnings: list[str]) -> ClosedLoopFit | None:
     """The output-error refinement of a speed-loop run (:mod:`stand.ident.closed_loop`),
     started from ``est``, where its loop law holds or the drive's supply is known; else
     None (a law refused for a reason the simulation does not model leaves it no start
-    it can be trusted to reach the loop from)."""
+    it can be trusted to reach the loop from). Where the law holds on all but some samples
+    and the supply is not known, a warning says the supply could not be modelled."""
     theta = run["position_rad"]
     saturated = not loop.holds
     if saturated:
-        if supply is None:
-            return None
         # a loop that saturates its supply: the law fitted on the samples it explains
         # (those outside the saturated stretches) starts the simulation that models them
         loop = fit_speed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
                               quantization_step(theta), trim=True)
         if not loop.holds:
+            return None
+        if supply is None:
+            warnings.append(SUPPLY_UNKNOWN)
             return None
     names = [name for name in spec.names() if name not in ("current", "one")]
     start = np.array([est.value(name) for name in names])

@@ -71,9 +71,6 @@ MIN_ROWS = 50
 #: deviations (white noise alone: 6e-5 of them), in at most this many passes.
 TRIM_SIGMAS = 4.0
 TRIM_PASSES = 6
-#: Contiguous blocks of the paired test by which a trimmed fit's longer delay must beat
-#: the shorter one.
-DELAY_BLOCKS = 16
 
 
 @dataclass(frozen=True)
@@ -234,46 +231,22 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
             rows = rows[inside]
         return rows
 
-    def squares(rows: np.ndarray, delay: int) -> np.ndarray:
-        """Each row's weighted squared residual of the law (with the lag column) fitted
-        on ``rows`` at ``delay``."""
-        beta, A, _ = weighted(rows, current[rows + delay], 4)
-        sd = np.sqrt(sigma**2 + (beta[0] * angle_sd * spread[rows]) ** 2)
-        return np.asarray((current[rows + delay] / sd - A @ beta) ** 2)
-
-    def beats(rows: np.ndarray, delay: int, shorter: int) -> bool:
-        """At ``delay`` the law explains the current on ``rows`` better than at
-        ``shorter``: the paired difference of the squared residuals is positive by a t
-        test over contiguous blocks (residuals near a saturated stretch are correlated)
-        beyond ``DELAY_SIGMAS``."""
-        gain = squares(rows, shorter) - squares(rows, delay)
-        means = np.array([part.mean() for part in np.array_split(gain, DELAY_BLOCKS)])
-        se = means.std(ddof=1) / np.sqrt(DELAY_BLOCKS)
-        return bool(means.mean() > DELAY_SIGMAS * se)
-
     best: tuple[float, int, np.ndarray] | None = None
-    if trim:
-        # the samples the law explains without a delay: a trimmed fit leaves out what it
-        # misses, and a drive whose supply slows its current looks delayed, so a longer
-        # delay's own trimming would keep the samples that suit it. Every delay is judged
-        # on these samples, and a longer one must beat the shorter by the paired test.
-        quiet = trimmed(np.flatnonzero(keep & ~at_limit), 0)
     for delay in range(MAX_DELAY + 1):
         rows = np.flatnonzero(keep[:n - delay] & ~at_limit[delay:])
-        if trim:
-            rows = np.intersect1d(rows, quiet)
         if len(rows) < MIN_ROWS:
             continue
+        if trim:
+            rows = trimmed(rows, delay)
         mean_square = weighted(rows, current[rows + delay], 4)[2]
-        if best is None:
-            best = (mean_square, delay, rows)
-        elif trim:
-            common = np.intersect1d(rows, best[2])
-            if len(common) >= MIN_ROWS and beats(common, delay, best[1]):
-                best = (mean_square, delay, rows)
         # a longer delay must fit better beyond the sampling error of a mean square
-        # (relative standard deviation √(2/rows)), else the shorter one stays
-        elif mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows))):
+        # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed, it
+        # must also explain as many samples (a drive whose supply slows the current looks
+        # delayed here: the simulation that models the supply tests the delay against none,
+        # :func:`~stand.ident.closed_loop.fit_closed_loop`)
+        if best is None or (
+                mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
+                and (not trim or len(rows) >= len(best[2]))):
             best = (mean_square, delay, rows)
     if best is None:
         smooth = int(np.count_nonzero(keep))

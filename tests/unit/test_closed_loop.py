@@ -19,7 +19,7 @@ from stand.errors import InputError
 from stand.excitation import excitation
 from stand.ident import closed_loop
 from stand.ident.closed_loop import effect_inputs, fit_closed_loop
-from stand.ident.identify import identify_run
+from stand.ident.identify import SUPPLY_UNKNOWN, identify_run
 from stand.ident.noise import noise_sigma
 from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
 from stand.ident.supply import DriveSupply
@@ -116,9 +116,12 @@ def supply_run(supply_V: float, loop_hz: float = 20.0) -> tuple[Run, DriveParams
 def test_a_loop_that_saturates_its_supply_is_simulated_when_the_supply_is_told() -> None:
     # A 20 Hz loop on a 6 V drive: each reversal's kick (kp·120 rad/s ≈ 6 A) needs far
     # more than 6 V, so the current ramps at the armature's own rate. The loop law misses
-    # the current (refused), and the sampled current gives Kt/J about 9 % high, outside
-    # its interval. Told the supply, and R, L, Kt 10-20 % off, the simulation follows the
-    # armature where the voltage runs out: Kt/J within 0.2 %, inside its interval.
+    # the current (refused), and the sampled current gives Kt/J about 10 % high, outside
+    # its interval; without the supply a warning says it could not be modelled. The law
+    # trimmed of the saturated samples takes the slowed current for a one-sample delay
+    # (the plant has none); the simulation with the supply (R, L, Kt told 10-20 % off)
+    # tests that delay against none and keeps none (with the delay, Kt/J +22 %): Kt/J
+    # within 1 % of the truth, inside its interval.
     run, drive = supply_run(6.0)
     assert np.max(np.abs(run["voltage_V"])) >= 6.0 * 0.999
     loop = speed_loop(run)
@@ -126,9 +129,10 @@ def test_a_loop_that_saturates_its_supply_is_simulated_when_the_supply_is_told()
     plain = identify_run(run)
     assert plain.Kt_over_J / KT_OVER_J - 1 > 0.05
     assert not plain.Kt_over_J_ci95[0] <= KT_OVER_J <= plain.Kt_over_J_ci95[1]
+    assert SUPPLY_UNKNOWN in plain.warnings
     told = DriveSupply(6.0, MOTOR.R * 1.2, MOTOR.L / 1.2, MOTOR.Kt * 1.1)
     r = identify_run(run, supply=told)
-    assert abs(r.Kt_over_J / KT_OVER_J - 1) < 0.002
+    assert abs(r.Kt_over_J / KT_OVER_J - 1) < 0.01
     assert r.Kt_over_J_ci95[0] <= KT_OVER_J <= r.Kt_over_J_ci95[1]
     assert not any("explains the current only" in w for w in r.warnings)
 
