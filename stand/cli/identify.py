@@ -33,11 +33,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how current noise is kept from biasing Kt/J: 'iv' instrumental "
                              "variables, 'bc' bias-compensated least squares, 'ls' plain least "
                              "squares, 'auto' the better of bc and iv (default with effects)")
+    options.add_motor_supply(parser)
 
 
 def run(args: argparse.Namespace) -> IdentifyResult:
     result = identify(read_run(args.run, "single"), args.method, args.no_load_current,
-                      args.half_width, args.effects, args.estimator)
+                      args.half_width, args.effects, args.estimator,
+                      options.motor_supply(args.motor))
     if not args.json:  # human mode: the warnings on stderr, beside the summary
         for text in result.warnings:
             LOG.warning("warning: %s", text)

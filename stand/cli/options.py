@@ -19,6 +19,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from stand.ident.supply import DriveSupply
 from stand.runfile import MIN_PERIOD_S
 
 #: Largest seed: numpy's legacy seeding range, 2**32 - 1.
@@ -176,3 +177,23 @@ def effect(text: str) -> str:
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
+
+
+def add_motor_supply(parser: argparse.ArgumentParser) -> None:
+    """``--motor PROFILE``: the drive's supply and the motor's armature for a speed-loop
+    run's refinement (:class:`~stand.ident.supply.DriveSupply`)."""
+    parser.add_argument("--motor", default=None, metavar="PROFILE",
+                        help="motor profile (name or YAML path) whose drive supply, current "
+                             "limit, R, L and Kt start the speed-loop refinement's model of a "
+                             "loop that saturates (R, L, Kt are refitted)")
+
+
+def motor_supply(name: str | None) -> DriveSupply | None:
+    """The :class:`~stand.ident.supply.DriveSupply` of motor profile ``name`` (None: none)."""
+    if name is None:
+        return None
+    from stand.profiles import load_motor
+
+    profile = load_motor(name)
+    return DriveSupply(profile.drive.supply_V, profile.motor.R, profile.motor.L,
+                       profile.motor.Kt, profile.drive.current_limit_A)

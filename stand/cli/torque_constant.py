@@ -36,6 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--estimator", choices=ESTIMATORS, default=None,
                         help="each run's estimator, as for stand identify (default: auto with "
                              "effects, ls without)")
+    options.add_motor_supply(parser)
 
 
 def run(args: argparse.Namespace) -> TorqueConstantResult:
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> TorqueConstantResult:
         [read_run(path, "single") for path in args.no_load],
         [read_run(path, "single") for path in args.loaded],
         args.added_inertia, args.method, not args.no_compensation, args.half_width,
-        args.effects, args.estimator)
+        args.effects, args.estimator, options.motor_supply(args.motor))
     if not args.json:  # human mode: the warnings on stderr, beside the summary
         for text in result.warnings:
             LOG.warning("warning: %s", text)

@@ -32,8 +32,9 @@ from stand.ident.derivatives import auto_half_width, state_derivatives
 from stand.ident.estimate import Estimate, block_count, solve_blocks, t_quantile
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
-from stand.ident.select import Fitter, model_variance, parse_effects, select
-from stand.ident.speed_loop import TARGET_COLUMN, SpeedLoop, speed_loop
+from stand.ident.select import Fitter, model_disagreement, model_variance, parse_effects, select
+from stand.ident.speed_loop import TARGET_COLUMN, SpeedLoop, fit_speed_loop, speed_loop
+from stand.ident.supply import DriveSupply
 from stand.jsonable import JsonResult
 from stand.runfile import Run
 
@@ -41,6 +42,13 @@ from stand.runfile import Run
 ESTIMATORS: tuple[str, ...] = ("auto", "iv", "bc", "ls")
 #: Lag of the current instruments beyond the kernel's support, samples.
 INSTRUMENT_MARGIN = 1
+
+#: Warning of a speed-loop run whose law holds but for some samples (those where the
+#: drive's voltage runs out) when the drive's supply is not known.
+SUPPLY_UNKNOWN = ("the PI speed law explains the current only outside some stretches, as on a "
+                  "drive whose supply voltage cannot follow the loop's kicks: the supply could "
+                  "not be modelled (tell the drive's supply, R and L: --motor PROFILE), so the "
+                  "output-error refinement is not used and Kt/J may be biased")
 
 #: Blocks the current is split into to test that it varies beyond its noise.
 EXCITATION_BLOCKS = 20
@@ -158,7 +166,8 @@ def _check_current_varies(current: np.ndarray, source: str) -> None:
 
 def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0.0,
                  half_width: int | None = None, effects: str = "auto",
-                 estimator: str | None = None) -> IdentifyResult:
+                 estimator: str | None = None,
+                 supply: DriveSupply | None = None) -> IdentifyResult:
     """Identify A and B of one single-motor run by seed 000 eq. 10, with effects.
 
     Parameters
@@ -182,6 +191,11 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
         (the noise then pulls Kt/J towards zero). ``auto`` takes whichever of ``bc`` and
         ``iv`` has the smaller error on this run (:func:`_pick_estimator`). ``None``:
         ``auto`` with effects, ``ls`` for ``effects='none'`` (seed 000's solver).
+    supply : DriveSupply or None
+        The drive's supply and current limit and the motor's armature (start values):
+        a speed-loop run's output-error refinement then models a loop that saturates
+        (:mod:`stand.ident.closed_loop`), and is tried even where the loop law alone
+        does not explain the current. Unused without the speed target.
 
     Raises
     ------
@@ -220,7 +234,7 @@ def identify_run(run: Run, method: str = "default", no_load_current_A: float = 0
         raise InputError(f"{run.source}: {len(measured)} samples; effects or the iv "
                          f"estimator need at least {MIN_DIAGNOSE_SAMPLES}")
     return _extended(run, no_load_current_A, half_width, wanted,
-                     estimator or "auto", warnings)
+                     estimator or "auto", warnings, supply)
 
 
 def _seed_model(run: Run, method: str, no_load_current_A: float, half_width: int | None,
@@ -249,7 +263,8 @@ def _seed_model(run: Run, method: str, no_load_current_A: float, half_width: int
 
 
 def _extended(run: Run, no_load_current_A: float, half_width: int | None,
-              wanted: list[str] | None, estimator: str, warnings: list[str]) -> IdentifyResult:
+              wanted: list[str] | None, estimator: str, warnings: list[str],
+              supply: DriveSupply | None = None) -> IdentifyResult:
     """The model with effects (or seed 000's, by iv), fitted on the kernel-filtered run."""
     sig = prepare(run)
     if no_load_current_A:
@@ -282,24 +297,31 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
         estimator, spec, est = _pick_estimator(design, spec, est, run.source)
     spread = model_variance(fitter, chosen)
     est = est.with_variance("current", spread)
-    if loop is not None and not loop.holds:
-        # a refused law leaves the refinement no start it can be trusted to reach the loop from
+    refined = _closed_loop(run, loop, spec, est, sigma, supply, warnings) if loop is not None else None
+    if loop is not None and refined is not None and refined.holds:
+        # the effects are the equation error's choice: their models' spread stays
+        law = (est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
+               if from_loop else None)
+        est = with_closed_loop(est, refined).with_variance("current", spread)
+        if law is not None:
+            # the law's equation error and the simulation model the loop differently;
+            # where both hold, Kt/J is known no better than they agree
+            est = est.with_variance("current", model_disagreement(law, est, "current"))
+    elif loop is not None and not loop.holds:
         warnings.append(loop.message)
-    elif loop is not None:
-        refined = _closed_loop(run, loop, spec, est, sigma)
-        if refined.holds:
-            # the effects are the equation error's choice: their models' spread stays
-            est = with_closed_loop(est, refined).with_variance("current", spread)
-        else:
+        if refined is not None:
             warnings.append(refined.message)
-            if from_loop:
-                # Kt/J scales as 1/kp: kp's relative uncertainty is Kt/J's
-                est = est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
-            else:
-                warnings.append("the current reconstructed from the PI speed law fits the "
-                                "motion worse than the sampled current (the loop may saturate "
-                                "between samples): the sampled current is used, and Kt/J may "
-                                "be high by up to π·f_loop·Δt")
+    elif loop is not None and loop.holds:
+        if refined is not None:
+            warnings.append(refined.message)
+        if from_loop:
+            # Kt/J scales as 1/kp: kp's relative uncertainty is Kt/J's
+            est = est.with_variance("current", (loop.kp_rel_sd * est.value("current")) ** 2)
+        else:
+            warnings.append("the current reconstructed from the PI speed law fits the motion "
+                            "worse than the sampled current (the loop may saturate between "
+                            "samples): the sampled current is used, and Kt/J may be high by "
+                            "up to π·f_loop·Δt")
     params = effect_params(spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes)
     timing = spec.delay + current_weight(spec, est)
@@ -308,15 +330,30 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
 
 
 def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
-                 sigma: float) -> ClosedLoopFit:
-    """The output-error refinement of a speed-loop run whose loop law holds
-    (:mod:`stand.ident.closed_loop`), started from ``est``."""
+                 sigma: float, supply: DriveSupply | None,
+                 warnings: list[str]) -> ClosedLoopFit | None:
+    """The output-error refinement of a speed-loop run (:mod:`stand.ident.closed_loop`),
+    started from ``est``, where its loop law holds or the drive's supply is known; else
+    None (a law refused for a reason the simulation does not model leaves it no start
+    it can be trusted to reach the loop from). Where the law holds on all but some samples
+    and the supply is not known, a warning says the supply could not be modelled."""
     theta = run["position_rad"]
+    saturated = not loop.holds
+    if saturated:
+        # a loop that saturates its supply: the law fitted on the samples it explains
+        # (those outside the saturated stretches) starts the simulation that models them
+        loop = fit_speed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
+                              quantization_step(theta), trim=True)
+        if not loop.holds:
+            return None
+        if supply is None:
+            warnings.append(SUPPLY_UNKNOWN)
+            return None
     names = [name for name in spec.names() if name not in ("current", "one")]
     start = np.array([est.value(name) for name in names])
     return fit_closed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s, loop, spec,
                            est.value("current"), -est.value("omega"), start,
-                           quantization_step(theta), sigma)
+                           quantization_step(theta), sigma, supply, saturated)
 
 
 def with_closed_loop(est: Estimate, fit: ClosedLoopFit) -> Estimate:

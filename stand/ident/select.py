@@ -331,13 +331,18 @@ def model_variance(fitter: Fitter, chosen: Selection) -> float:
     (Hausman), which is taken off each squared difference, so that a noisy run does not
     count its noise twice.
     """
-    k = chosen.estimate.names.index("current")
-    b, var = chosen.estimate.beta[k], chosen.estimate.cov[k, k]
-    spread = []
-    for est in competitors(fitter, chosen, chosen.pool):
-        j = est.names.index("current")
-        spread.append(max(0.0, (est.beta[j] - b) ** 2 - abs(est.cov[j, j] - var)))
+    spread = [model_disagreement(est, chosen.estimate, "current")
+              for est in competitors(fitter, chosen, chosen.pool)]
     return float(max(spread, default=0.0))
+
+
+def model_disagreement(one: Estimate, other: Estimate, name: str) -> float:
+    """Squared difference of coefficient ``name`` between two models' estimates, less the
+    part their own noise makes (the difference of their variances, as for nested fits:
+    Hausman), at least 0."""
+    k, j = one.names.index(name), other.names.index(name)
+    difference = float(one.beta[k] - other.beta[j])
+    return max(0.0, difference**2 - abs(float(one.cov[k, k] - other.cov[j, j])))
 
 
 def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,

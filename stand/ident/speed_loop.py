@@ -67,6 +67,10 @@ MIN_LIMIT_SAMPLES = 3
 SUBSTEPS = 64
 #: Fewest rows for the gains' fit.
 MIN_ROWS = 50
+#: A trimmed fit leaves out samples the law misses by more than this many of their noise
+#: deviations (white noise alone: 6e-5 of them), in at most this many passes.
+TRIM_SIGMAS = 4.0
+TRIM_PASSES = 6
 
 
 @dataclass(frozen=True)
@@ -167,7 +171,7 @@ def tracking_errors(theta: np.ndarray, target: np.ndarray,
 
 
 def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
-                   dt: float, quant_rad: float = 0.0) -> SpeedLoop:
+                   dt: float, quant_rad: float = 0.0, trim: bool = False) -> SpeedLoop:
     """Fit the PI law to a speed-mode run and reconstruct the current over each period.
 
     Parameters
@@ -183,6 +187,11 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
     quant_rad : float
         Encoder step, rad: its error (``q/√12``) enters the speed at each sample, and
         the law's residual is weighed by the current and speed noise of its row.
+    trim : bool
+        Leave out, and refit without, the samples the law misses by more than
+        ``TRIM_SIGMAS`` of their noise (repeated until none is left out): samples within
+        a stretch where the drive's voltage saturates, when the law is wanted only as
+        the start of a simulation that models that (:mod:`stand.ident.closed_loop`).
     """
     n = len(theta)
     omega, alpha, spread = kink_free_derivatives(theta, target, dt)
@@ -211,15 +220,33 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         beta, *_ = np.linalg.lstsq(A, b, rcond=None)
         return beta, A, float(np.sum((b - A @ beta) ** 2)) / (len(rows) - columns)
 
+    def trimmed(rows: np.ndarray, delay: int) -> np.ndarray:
+        """``rows`` less those the law misses by more than ``TRIM_SIGMAS``, repeatedly."""
+        for _ in range(TRIM_PASSES):
+            beta = weighted(rows, current[rows + delay], 3)[0]
+            sd = np.sqrt(sigma**2 + (beta[0] * angle_sd * spread[rows]) ** 2)
+            inside = np.abs(current[rows + delay] - X[rows, :3] @ beta) <= TRIM_SIGMAS * sd
+            if inside.all() or inside.sum() < MIN_ROWS:
+                break
+            rows = rows[inside]
+        return rows
+
     best: tuple[float, int, np.ndarray] | None = None
     for delay in range(MAX_DELAY + 1):
         rows = np.flatnonzero(keep[:n - delay] & ~at_limit[delay:])
         if len(rows) < MIN_ROWS:
             continue
+        if trim:
+            rows = trimmed(rows, delay)
         mean_square = weighted(rows, current[rows + delay], 4)[2]
         # a longer delay must fit better beyond the sampling error of a mean square
-        # (relative standard deviation √(2/rows)), else the shorter one stays
-        if best is None or mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows))):
+        # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed, it
+        # must also explain as many samples (a drive whose supply slows the current looks
+        # delayed here: the simulation that models the supply tests the delay against none,
+        # :func:`~stand.ident.closed_loop.fit_closed_loop`)
+        if best is None or (
+                mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
+                and (not trim or len(rows) >= len(best[2]))):
             best = (mean_square, delay, rows)
     if best is None:
         smooth = int(np.count_nonzero(keep))

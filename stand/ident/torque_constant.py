@@ -38,6 +38,7 @@ from stand.ident.derivatives import state_derivatives
 from stand.ident.estimate import MIN_BLOCKS, t_quantile
 from stand.ident.identify import IdentifyResult, identify_run
 from stand.ident.select import parse_effects
+from stand.ident.supply import DriveSupply
 from stand.jsonable import JsonResult
 from stand.runfile import Run
 
@@ -152,7 +153,8 @@ def _interval(values: np.ndarray, std: float, dof: int) -> list[float]:
 def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
                     added_inertia: float, method: str = "default", compensate: bool = True,
                     half_width: int | None = None, effects: str = "auto",
-                    estimator: str | None = None) -> TorqueConstantResult:
+                    estimator: str | None = None,
+                    supply: DriveSupply | None = None) -> TorqueConstantResult:
     """Kt, J, D, C from repeated no-load and added-inertia runs (eqs. 11-17, §5.1).
 
     Parameters
@@ -172,6 +174,9 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
         :func:`~stand.ident.identify.identify_run` (the paper method takes none).
     estimator : {'auto', 'iv', 'bc', 'ls'} or None
         Each run's estimator, as for :func:`~stand.ident.identify.identify_run`.
+    supply : DriveSupply or None
+        The drive's supply and the motor's armature, for each speed-loop run's
+        refinement (:func:`~stand.ident.identify.identify_run`).
 
     Raises
     ------
@@ -199,9 +204,9 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
     currents = [no_load_current(run, method, half_width) for run in no_load_runs]
     i_nl = float(np.mean(currents))
     offset = i_nl if compensate and seed_model else 0.0
-    free: list[IdentifyResult] = [identify_run(r, method, offset, half_width, effects, estimator)
-                                  for r in no_load_runs]
-    loaded = [identify_run(r, method, offset, half_width, effects, estimator)
+    free: list[IdentifyResult] = [identify_run(r, method, offset, half_width, effects, estimator,
+                                               supply) for r in no_load_runs]
+    loaded = [identify_run(r, method, offset, half_width, effects, estimator, supply)
               for r in loaded_runs]
     b_free = np.array([f.Kt_over_J for f in free])
     b_load = np.array([f.Kt_over_J for f in loaded])

@@ -16,6 +16,12 @@ sampling hides between samples, :mod:`docs/results/ident.md`).
     python tests/bench/bench_ident_coverage.py --kt --stands 20 --seed 1   # 5 + 5 repeats
     python tests/bench/bench_ident_coverage.py --timing   # the current between samples
     python tests/bench/bench_ident_coverage.py --mode speed --no-target   # one mode, no target
+    python tests/bench/bench_ident_coverage.py --mode speed --no-supply   # supply not told
+    python tests/bench/bench_ident_coverage.py --supply-cost   # CPU s of one 20 s, 1 kHz run
+
+``identify`` is told the drive's supply (48 V) and current limit, and the motor's R, L and
+Kt each off by a factor of up to 1.25 either way (a profile's values, which the
+speed-loop refinement refits); ``--no-supply`` tells it nothing.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ from stand.errors import StandError
 from stand.excitation import excitation
 from stand.ident.identify import identify_run
 from stand.ident.select import IDENT_EFFECTS
+from stand.ident.supply import DriveSupply
 from stand.ident.torque_constant import torque_constant
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
@@ -126,6 +133,19 @@ def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: 
         return read_run(path, "single")
 
 
+#: Largest factor by which the R, L and Kt told to ``identify`` are off the truth.
+PROFILE_ERROR = 1.25
+
+
+def told_supply(stand: dict[str, Any], rng: np.random.Generator) -> DriveSupply:
+    """What a user knows of ``stand``'s drive: its supply and current limit exactly, and
+    R, L, Kt off by up to :data:`PROFILE_ERROR` either way (log-uniform)."""
+    motor, drive = stand["motor"], stand["drive"]
+    off = [_log_uniform(rng, 1 / PROFILE_ERROR, PROFILE_ERROR) for _ in range(3)]
+    return DriveSupply(drive.supply_V, motor.R * off[0], motor.L * off[1], motor.Kt * off[2],
+                       drive.current_limit_A)
+
+
 def case_mode(index: int, seed: int) -> str:
     """Drive mode of case ``index`` (the same draw as :func:`run_case`)."""
     return str(draw_stand(np.random.default_rng([seed, index]))["mode"])
@@ -140,7 +160,7 @@ def kt_mode(index: int, seed: int) -> str:
 NOT_RECONSTRUCTED = "the PI speed law explains"
 
 
-def run_case(index: int, seed: int, target: bool = True) -> dict[str, Any]:
+def run_case(index: int, seed: int, target: bool = True, supply: bool = True) -> dict[str, Any]:
     """Draw, simulate and identify case ``index``; score Kt/J and its interval."""
     rng = np.random.default_rng([seed, index])
     stand = draw_stand(rng)
@@ -150,9 +170,10 @@ def run_case(index: int, seed: int, target: bool = True) -> dict[str, Any]:
     truth = stand["motor"].Kt / stand["motor"].J
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"], "loop_hz": stand["loop_hz"]}
+    told = told_supply(stand, np.random.default_rng([seed, index, 2])) if supply else None
     start = time.perf_counter()
     try:
-        r = identify_run(run)
+        r = identify_run(run, supply=told)
     except StandError as exc:
         return {**row, "error": str(exc), "seconds": time.perf_counter() - start}
     low, high = r.Kt_over_J_ci95
@@ -194,7 +215,8 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def run_kt_case(index: int, seed: int, target: bool = True) -> dict[str, Any]:
+def run_kt_case(index: int, seed: int, target: bool = True,
+                supply: bool = True) -> dict[str, Any]:
     """Torque constant from 5 + 5 repeats on one random stand with one random effect."""
     rng = np.random.default_rng([seed, index, 1])
     stand = draw_stand(rng)
@@ -206,8 +228,9 @@ def run_kt_case(index: int, seed: int, target: bool = True) -> dict[str, Any]:
     loaded = [simulate(stand, effects, base + 10 + k, added, target=target) for k in range(5)]
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"]}
+    told = told_supply(stand, np.random.default_rng([seed, index, 3])) if supply else None
     try:
-        r = torque_constant(free, loaded, added)
+        r = torque_constant(free, loaded, added, supply=told)
     except StandError as exc:
         return {**row, "error": str(exc)}
     low, high = r.Kt_ci95
@@ -235,7 +258,30 @@ def timing_figures() -> dict[str, Any]:
     return out
 
 
-def _pool_map(function: Any, jobs: list[tuple[int, int, bool]],
+def supply_cost(duration_s: float = 20.0, dt: float = 1e-3) -> dict[str, Any]:
+    """CPU seconds of one identification of a 20 Hz speed loop on a 6 V drive (its kicks
+    saturate the supply; PRBS speed steps of ±60 rad/s held 0.2 s, ``duration_s`` at
+    ``dt``), without and with the supply told (R, L, Kt 10-20 % off), and Kt/J's error."""
+    motor = MotorParams(R=2.0, L=1e-3, Kt=0.05, J=2e-5, D=4e-5)
+    kp = 2 * math.pi * 20.0 * motor.J / motor.Kt
+    drive = DriveParams(mode="speed", supply_V=6.0, current_limit_A=50.0, speed_kp=kp,
+                        speed_ki=kp * 2 * math.pi * 20.0 / 5)
+    plant = MotorPlant(motor, drive, SensorParams(encoder_lines=2000, current_noise_A=0.005),
+                       Effects(), seed=3)
+    samples = int(round(duration_s / dt))
+    command = excitation("prbs", samples, dt, 0.0, 60.0, int(round(0.2 / dt)), seed=3)
+    run = simulate_motor(plant, "speed", command, dt)
+    told = DriveSupply(6.0, motor.R * 1.2, motor.L / 1.2, motor.Kt * 1.1)
+    out: dict[str, Any] = {"samples": samples}
+    for name, supply in (("no_supply", None), ("supply", told)):
+        start = time.process_time()
+        r = identify_run(run, supply=supply)
+        out[name] = {"cpu_seconds": time.process_time() - start,
+                     "error_rel": r.Kt_over_J / (motor.Kt / motor.J) - 1.0}
+    return out
+
+
+def _pool_map(function: Any, jobs: list[tuple[int, int, bool, bool]],
               workers: int) -> list[dict[str, Any]]:
     if workers <= 1:
         return [function(*job) for job in jobs]
@@ -256,16 +302,25 @@ def main(argv: list[str] | None = None) -> int:
                         help="only the cases (stands) of this drive mode")
     parser.add_argument("--no-target", action="store_true",
                         help="leave the speed target out of the run files")
+    parser.add_argument("--no-supply", action="store_true",
+                        help="tell identify nothing of the drive's supply and the motor")
     parser.add_argument("--rows", type=Path, help="write every case as JSON lines here")
+    parser.add_argument("--supply-cost", action="store_true",
+                        help="CPU seconds of identify on a 20 s, 1 kHz run that saturates "
+                             "a 6 V supply, without and with the supply told")
     parser.add_argument("--timing", action="store_true",
                         help="noise-free Kt/J error: point samples against the held current")
     args = parser.parse_args(argv)
+    if args.supply_cost:
+        json.dump(supply_cost(), sys.stdout, indent=1)
+        print()
+        return 0
     if args.timing:
         json.dump(timing_figures(), sys.stdout, indent=1)
         print()
         return 0
     if args.kt:
-        jobs = [(k, args.seed, not args.no_target) for k in range(args.stands)
+        jobs = [(k, args.seed, not args.no_target, not args.no_supply) for k in range(args.stands)
                 if args.mode is None or kt_mode(k, args.seed) == args.mode]
         rows = _pool_map(run_kt_case, jobs, args.workers)
         ok = [r for r in rows if "error_rel" in r]
@@ -279,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
                                            if r["mode"] == m] or [np.nan]))
                          for m in ("current", "speed")}}
     else:
-        jobs = [(k, args.seed, not args.no_target) for k in range(args.cases)
+        jobs = [(k, args.seed, not args.no_target, not args.no_supply) for k in range(args.cases)
                 if args.mode is None or case_mode(k, args.seed) == args.mode]
         rows = _pool_map(run_case, jobs, args.workers)
         summary = summarize(rows)

@@ -3,16 +3,31 @@ between samples and fitted to the sampled angle and current (issue 19)."""
 
 from __future__ import annotations
 
+import json
+import math
+from pathlib import Path
+from typing import Any
+
 import numpy as np
+import pytest
 from scipy.linalg import expm
 
+from stand.cli import main, options
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.signals import quantization_step
+from stand.errors import InputError
+from stand.excitation import excitation
 from stand.ident import closed_loop
 from stand.ident.closed_loop import effect_inputs, fit_closed_loop
-from stand.ident.identify import identify_run
+from stand.ident.identify import SUPPLY_UNKNOWN, identify_run
 from stand.ident.noise import noise_sigma
 from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
+from stand.ident.supply import DriveSupply
+from stand.physics.effects import Effects
+from stand.physics.parts import DriveParams, SensorParams
+from stand.physics.plant import MotorPlant
+from stand.physics.simulate import simulate_motor
+from stand.runfile import Run, write_run
 from tests.unit.test_speed_loop import KT_OVER_J, MOTOR, speed_run
 
 
@@ -60,24 +75,73 @@ def test_current_limit_between_samples_is_simulated() -> None:
     assert abs(fit.Kt_over_J / KT_OVER_J - 1) < 0.005
 
 
-def test_modal_step_matches_the_matrix_exponential(monkeypatch: object) -> None:
+def test_modal_step_matches_the_matrix_exponential() -> None:
+    # every mode of the drive (the law, the command at its limit, the supply applied),
+    # over a whole period and a part of one
     model = closed_loop._LoopModel(np.zeros(10), np.zeros(10), np.zeros(10),
-                                   np.ones((9, 1)), 3e-3, 0, 1.0, 1.0, False)
-    p = np.array([1200.0, 12.0, 0.05, 0.7, np.log(2e-4), 0, 0, 0, 0, 0, 0, 3.0])
-    for clipped in (False, True):
-        Phi, Gamma = model._discrete(p, 3e-3, clipped)
-        m = Gamma.shape[1]
-        a, d, kp, ki, tau = 1200.0, 12.0, 0.05, 0.7, 2e-4
-        A = np.array([[0, 1, 0, 0], [0, -d, 0, a], [0, -ki, 0, 0],
-                      [0, 0 if clipped else -kp / tau, 0 if clipped else 1 / tau, -1 / tau]])
-        B = np.zeros((4, m))
-        B[2, 0], B[1, 1] = ki, 3.0
-        B[3, -1 if clipped else 0] = (1.0 if clipped else kp) / tau
-        M = np.zeros((4 + m, 4 + m))
-        M[:4, :4], M[:4, 4:] = A * 3e-3, B * 3e-3
-        E = expm(M)
-        np.testing.assert_allclose(Phi, E[:4, :4], atol=1e-9)
-        np.testing.assert_allclose(Gamma, E[:4, 4:], atol=1e-12)
+                                   np.ones((9, 1)), 3e-3, 0, 1.0, 1.0, True, True)
+    a, d, kp, ki, tau, b = 1200.0, 12.0, 0.05, 0.7, 2e-4, 3.0
+    volts, ohms, emf, limit = 2e4, 2e3, 50.0, 3.0
+    p = np.array([a, d, kp, ki, np.log(tau), 0, 0, 0, 0, 0, 0, b,
+                  np.log(volts), np.log(ohms), np.log(emf), limit])
+    rows = {closed_loop.LAW: ([0, -kp / tau, 1 / tau, -1 / tau], kp / tau, 0.0),
+            closed_loop.LIMIT_UP: ([0, 0, 0, -1 / tau], 0.0, limit / tau),
+            closed_loop.SUPPLY_DOWN: ([0, -emf, 0, -ohms], 0.0, -volts)}
+    modes = model._modes(p)
+    for mode, (row, from_target, constant) in rows.items():
+        A = np.array([[0, 1, 0, 0], [0, -d, 0, a], [0, -ki, 0, 0], row], dtype=float)
+        B = np.zeros((4, 3))
+        B[2, 0], B[1, 1], B[3, 0], B[3, 2] = ki, b, from_target, constant
+        for h in (3e-3, 1.3e-4):
+            M = np.zeros((7, 7))
+            M[:4, :4], M[:4, 4:] = A * h, B * h
+            E = expm(M)
+            Phi, Gamma = modes[mode].step(h)
+            np.testing.assert_allclose(Phi, E[:4, :4], atol=1e-9)
+            np.testing.assert_allclose(Gamma, E[:4, 4:], rtol=1e-9, atol=1e-12)
+
+
+def supply_run(supply_V: float, loop_hz: float = 20.0) -> tuple[Run, DriveParams]:
+    """``speed_run``'s reversals on a drive of ``supply_V``."""
+    dt = 3e-3
+    kp = 2 * math.pi * loop_hz * MOTOR.J / MOTOR.Kt
+    drive = DriveParams(mode="speed", supply_V=supply_V, current_limit_A=50.0, speed_kp=kp,
+                        speed_ki=kp * 2 * math.pi * loop_hz / 5)
+    plant = MotorPlant(MOTOR, drive, SensorParams(encoder_lines=2000, current_noise_A=0.005),
+                       Effects(), seed=3)
+    command = excitation("prbs", int(6.0 / dt), dt, 0.0, 60.0, int(0.2 / dt), seed=3)
+    return simulate_motor(plant, "speed", command, dt), drive
+
+
+def test_a_loop_that_saturates_its_supply_is_simulated_when_the_supply_is_told() -> None:
+    # A 20 Hz loop on a 6 V drive: each reversal's kick (kp·120 rad/s ≈ 6 A) needs far
+    # more than 6 V, so the current ramps at the armature's own rate. The loop law misses
+    # the current (refused), and the sampled current gives Kt/J about 10 % high, outside
+    # its interval; without the supply a warning says it could not be modelled. The law
+    # trimmed of the saturated samples takes the slowed current for a one-sample delay
+    # (the plant has none); the simulation with the supply (R, L, Kt told 10-20 % off)
+    # tests that delay against none and keeps none (with the delay, Kt/J +22 %): Kt/J
+    # within 1 % of the truth, inside its interval.
+    run, drive = supply_run(6.0)
+    assert np.max(np.abs(run["voltage_V"])) >= 6.0 * 0.999
+    loop = speed_loop(run)
+    assert loop is not None and not loop.holds
+    plain = identify_run(run)
+    assert plain.Kt_over_J / KT_OVER_J - 1 > 0.05
+    assert not plain.Kt_over_J_ci95[0] <= KT_OVER_J <= plain.Kt_over_J_ci95[1]
+    assert SUPPLY_UNKNOWN in plain.warnings
+    told = DriveSupply(6.0, MOTOR.R * 1.2, MOTOR.L / 1.2, MOTOR.Kt * 1.1)
+    r = identify_run(run, supply=told)
+    assert abs(r.Kt_over_J / KT_OVER_J - 1) < 0.01
+    assert r.Kt_over_J_ci95[0] <= KT_OVER_J <= r.Kt_over_J_ci95[1]
+    assert not any("explains the current only" in w for w in r.warnings)
+
+
+def test_drive_supply_names_a_bad_field() -> None:
+    with pytest.raises(InputError, match="R must be a number > 0"):
+        DriveSupply(24.0, -1.0, 1e-3, 0.05)
+    with pytest.raises(InputError, match="supply_V must be finite"):
+        DriveSupply(math.inf, 1.0, 1e-3, 0.05)
 
 
 def test_effect_columns_follow_the_spec() -> None:
@@ -87,3 +151,17 @@ def test_effect_columns_follow_the_spec() -> None:
     assert g.shape == (100, 3)
     assert np.all(g[:, 0] == 1.0)                       # turning forward throughout
     assert effect_inputs(ModelSpec(offset=True), theta, np.ones(101), 1e-3, 0.0).shape == (100, 0)
+
+
+def test_cli_motor_profile_tells_the_supply(tmp_path: Path, capsys: Any) -> None:
+    # `stand identify --motor PROFILE` reads the drive's supply and the motor's armature
+    # from the profile; an unknown profile is bad input (exit 2, named on stderr).
+    assert options.motor_supply("crouzet_82800502") == DriveSupply(24.0, 1.9, 1.5e-3,
+                                                                   0.0527, 3.0)
+    run, _ = speed_run(5.0)
+    path = write_run(tmp_path / "run.csv", {c: run[c] for c in (
+        "time_s", "current_A", "position_rad", TARGET_COLUMN)})
+    assert main(["identify", str(path), "--json", "--motor", "crouzet_82800502"]) == 0
+    assert json.loads(capsys.readouterr().out)["Kt_over_J"] > 0
+    assert main(["identify", str(path), "--motor", "no_such_motor"]) == 2
+    assert "no_such_motor" in capsys.readouterr().err
