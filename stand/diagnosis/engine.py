@@ -13,8 +13,8 @@
    there instead (``Bench.across``).
 4. Take the significant candidate with the smallest gap (an effect that nests it, as
    Stribeck friction nests Coulomb friction, wins over it when it is significant
-   itself, i.e. when both runs resolve what it adds, unless the nested effect simulates
-   HOLDOUT significantly better); then add further effects greedily while an addition
+   itself, i.e. when both runs resolve what it adds, and simulates HOLDOUT significantly
+   better than the nested effect); then add further effects greedily while an addition
    still improves HOLDOUT significantly, the input reconstruction picked again on TRAIN
    once the first effect is in (:mod:`.input_weight`); then judge each with the others in
    the model (:mod:`.selection`).
