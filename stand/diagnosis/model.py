@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stand.diagnosis.backlash_load import load_state
+from stand.diagnosis.dry_friction import period_mean
 from stand.diagnosis.signals import Signals
 from stand.errors import InputError, NotExcitedError
 from stand.ident.qmatrix import QSums, solve
@@ -235,16 +236,15 @@ def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
 
 def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
     """Unfiltered input column ``name`` of ``spec`` on the measured run ``sig``."""
-    theta, omega = sig.theta_f, sig.omega_f
+    theta = sig.theta_f
     if name == "current":
         return sample_current(shifted(sig.current, spec.delay), spec.input_weight)
     if name == "one":
         return np.ones(len(theta))
     if name == "sign":
-        return velocity_sign(omega, sig)
+        return at_samples(period_mean(friction_speed(sig)))
     if name == "stribeck":
-        ws = spec.stribeck_ws or 1.0
-        return velocity_sign(omega, sig) * np.exp(-((omega / ws) ** 2))
+        return at_samples(period_mean(friction_speed(sig), spec.stribeck_ws or 1.0))
     if name in ("cog_sin", "cog_cos"):
         return at_samples(periodic_column(spec.cogging_N or 0, sig, name == "cog_sin"))
     if name in ("rip_sin", "rip_cos"):
@@ -290,6 +290,16 @@ def _prefetch(specs: list[ModelSpec], sig: Signals) -> None:
     raw = np.stack([_column(spec, sig, name) for spec, name in missing.values()])
     for key, column in zip(missing, sig.filt(raw, axis=1), strict=True):
         sig.cache[key] = column
+
+
+def friction_speed(sig: Signals) -> np.ndarray:
+    """Speed at the sample instants the friction columns follow, rad/s: the central
+    difference of the measured position (the low-passed speed rounds off the kink
+    friction makes at a zero crossing, and crosses zero late), zero where it is below
+    the velocity resolution of the run (a shaft at rest, or quantization)."""
+    resolution = VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s
+    omega = sig.omega_meas
+    return np.where(np.abs(omega) > resolution, omega, 0.0)
 
 
 def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:

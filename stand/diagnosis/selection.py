@@ -2,8 +2,8 @@
 backward pass that judges each chosen effect with the others in the model.
 
 1. The best significant candidate first (an effect that nests it, as Stribeck friction
-   nests Coulomb friction, wins over it when it is significant itself, unless the nested
-   effect simulates HOLDOUT significantly better); then further effects greedily while
+   nests Coulomb friction, wins over it when it is significant itself and simulates
+   HOLDOUT significantly better than the nested effect); then further effects greedily while
    an addition improves HOLDOUT significantly against the model holding the ones before.
    Once the first effect is in, the input reconstruction (``input_weight``) is picked
    again on TRAIN with it in the model (:func:`reweighted`) before further effects are
@@ -32,13 +32,20 @@ def select(bench: Bench, base: Scored, singles: dict[str, Scored],
     if not significant:
         return [], base, []
     first = min(significant, key=lambda n: singles[n].gap)
+    for inner in effects.get(first).nests:
+        # the nesting effect simulates best, but not significantly better than the
+        # effect it nests: the smaller model explains HOLDOUT as well
+        if (inner in significant
+                and not improvement(singles[inner], singles[first]).significant(1)):
+            first = inner
+            break
     for outer in effects.nested_in(first):
-        # an effect that nests the first (Stribeck friction holds a Coulomb level) is
-        # significant only when both runs resolve what it adds (its agree), which is
-        # what makes it count, unless the nested effect alone simulates HOLDOUT
-        # significantly better
+        # an effect that nests the first (Stribeck friction holds a Coulomb level)
+        # replaces it when both runs resolve what it adds (its agree: it is significant)
+        # and what it adds simulates HOLDOUT significantly better than the nested effect
+        # alone: the larger model earns its extra parameters on HOLDOUT
         if (outer in significant
-                and not improvement(singles[outer], singles[first]).significant(1)):
+                and improvement(singles[first], singles[outer]).significant(1)):
             first = outer
             break
     chosen, current = [first], reweighted(bench, singles[first])
@@ -91,8 +98,8 @@ def revise(bench: Bench, chosen: list[str], current: Scored
        (Stribeck and Coulomb friction), the two forms are compared again with the other
        effects in the model, by the rule of the first step: the nesting form stays (or
        comes in) only when, searched beside the others, both runs resolve what it adds
-       (its consistency) and the nested form does not simulate HOLDOUT significantly
-       better. A static excess fitted before a position-periodic torque was in the model
+       (its consistency) and it simulates HOLDOUT significantly better than the nested
+       form. A static excess fitted before a position-periodic torque was in the model
        can be that torque's low-speed share.
     2. Elimination: an effect whose removal from the joint model (the others re-fitted,
        their hyper-parameters kept) HOLDOUT's paired test does not reject
@@ -115,7 +122,7 @@ def revise(bench: Bench, chosen: list[str], current: Scored
         keep_outer = (outer_form.spec != NO_FIT and outer_form.consistent
                       and improvement(rest, outer_form).significant(1)
                       and (inner_form.spec == NO_FIT
-                           or not improvement(outer_form, inner_form).significant(1)))
+                           or improvement(inner_form, outer_form).significant(1)))
         pick = wide if keep_outer else inner
         if pick == name or forms[pick].spec == NO_FIT:
             continue

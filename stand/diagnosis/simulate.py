@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stand.diagnosis.backlash_load import load_state
+from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
     VELOCITY_RESOLUTION_COUNTS,
@@ -140,6 +141,10 @@ class _Stepper:
         self.smooth = friction_smoothing(sig)
         self.friction = "sign" in c
         self.stribeck = "stribeck" in c
+        # a physical friction (a level >= 0 at every speed, a static level > 0) is
+        # stepped as dry friction
+        static = self.fc + (self.fs if self.stribeck else 0.0)
+        self.dry = self.friction and self.fc >= 0 and static > 0
         top = float(np.max(np.abs(sig.omega_f)))
         rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
                    (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
@@ -186,23 +191,31 @@ class _Stepper:
             side = np.where(side * (st.omega_l - omega) > 0, 0.0, side)  # load rebounding away
             scale = np.where(side != 0, 1.0 / (1.0 + ratio), 1.0)
             h_eff = np.where(side != 0, self.h_carried, self.h_free)
-        if self.friction:
-            # Friction stepped implicitly (stable for any smoothing): where it can stop the
-            # shaft within the step the speed goes to the linear regime of tanh near zero.
-            smooth = self.smooth
-            free = omega + h_eff * scale * a
-            if isinstance(level, float) and level < 0:  # a friction that drives
-                new = free - h_eff * scale * level * np.tanh(omega / smooth)
-            else:
-                stop = h_eff * scale * np.maximum(level, 0.0)
-                new = np.where(np.abs(free) > stop, free - stop * np.sign(free),
-                               free / (1.0 + stop / smooth))
-                if not isinstance(level, float):
-                    new = np.where(level < 0,
-                                   free - h_eff * scale * level * np.tanh(omega / smooth), new)
+        if self.dry:
+            # dry friction as the continuous shaft meets it: its zero crossing, sticking
+            # and breakaway located in the step, the Stribeck level averaged along it
+            new, mean = friction_step(omega, omega + h_eff * scale * a, h_eff * scale,
+                                      self.fc, self.fs if self.stribeck else 0.0, self.ws)
+            st.theta = theta + h * mean
         else:
-            new = omega + h_eff * scale * a
-        st.theta = theta + 0.5 * h * (omega + new)
+            if self.friction:
+                # a fitted friction level that drives the shaft somewhere (not friction):
+                # stepped implicitly, stable for any smoothing
+                smooth = self.smooth
+                free = omega + h_eff * scale * a
+                if isinstance(level, float) and level < 0:
+                    new = free - h_eff * scale * level * np.tanh(omega / smooth)
+                else:
+                    stop = h_eff * scale * np.maximum(level, 0.0)
+                    new = np.where(np.abs(free) > stop, free - stop * np.sign(free),
+                                   free / (1.0 + stop / smooth))
+                    if not isinstance(level, float):
+                        new = np.where(level < 0,
+                                       free - h_eff * scale * level * np.tanh(omega / smooth),
+                                       new)
+            else:
+                new = omega + h_eff * scale * a
+            st.theta = theta + 0.5 * h * (omega + new)
         st.omega = new
         if gap is not None:
             carried = side != 0
@@ -226,15 +239,11 @@ def _phi1(z: float) -> float:
 
 
 def friction_smoothing(sig: Signals) -> float:
-    """Speed over which simulated friction changes sign, rad/s: ``sign(ω)`` becomes
+    """Speed over which a simulated friction that is not physical (a fitted level that
+    pushes the shaft along somewhere) changes sign, rad/s: ``sign(ω)`` becomes
     ``tanh(ω/ε)`` with ε the run's velocity resolution (as in :func:`velocity_sign`), at
-    least ``FRICTION_SMOOTHING_FRACTION`` of its 95th-percentile speed.
-
-    A hard sign with stiction (Karnopp) makes the free run flip the friction torque at
-    the simulated, not the real, zero crossing and stick where the real shaft moved; a
-    friction that changes sign within the velocity resolution keeps the free run close
-    to the measured one without claiming more than the data resolve near standstill.
-    """
+    least ``FRICTION_SMOOTHING_FRACTION`` of its 95th-percentile speed. A physical
+    friction is stepped as dry friction (:func:`.dry_friction.friction_step`)."""
     return max(VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s,
                FRICTION_SMOOTHING_FRACTION * sig.top_speed, 1e-12)
 

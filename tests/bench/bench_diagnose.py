@@ -113,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
           f"exactly, {summary['in_vocabulary_unexplained_nothing_named']} with nothing named); "
           f"pairs exact "
           f"{_percent(summary['pairs_exact'])} of {summary['pair_cases']}")
+    print(f"  against the truth alone (a Stribeck friction whose static excess never shows "
+          f"counted wrong when called Coulomb friction; {summary['resolved_differs']} such "
+          f"in-vocabulary cases): top-1 {_percent(summary['in_vocabulary_top1_strict'])}, "
+          f"pairs exact {_percent(summary['pairs_exact_strict'])}")
     source = "the rows given" if args.summarize else f"{args.outside_set} set"
     print(f"outside the vocabulary ({source}): unexplained "
           f"{_percent(summary['outside_unexplained'])} of "
