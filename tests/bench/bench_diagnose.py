@@ -113,6 +113,12 @@ def main(argv: list[str] | None = None) -> int:
           f"exactly, {summary['in_vocabulary_unexplained_nothing_named']} with nothing named); "
           f"pairs exact "
           f"{_percent(summary['pairs_exact'])} of {summary['pair_cases']}")
+    print(f"cases whose every planted effect shows against its twin runs without it "
+          f"(same command, sensors and noise; oracle.visible_against_twin) -- a diagnostic, "
+          f"NOT the headline: pairs exact {_percent(summary['pairs_shown_exact'])} of "
+          f"{summary['pairs_shown']}; outside unexplained "
+          f"{_percent(summary['outside_shown_unexplained'])} of {summary['outside_shown']}, "
+          f"none {summary['outside_shown_none']}")
     source = "the rows given" if args.summarize else f"{args.outside_set} set"
     print(f"outside the vocabulary ({source}): unexplained "
           f"{_percent(summary['outside_unexplained'])} of "
