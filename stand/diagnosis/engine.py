@@ -27,6 +27,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from stand import effects
 from stand.diagnosis import input_weight
 from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
@@ -47,7 +49,13 @@ from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
 from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import PairedTest, paired_improvement
-from stand.diagnosis.structure import MAX_PHASE_SHARE, along_travel_test, structure_test
+from stand.diagnosis.structure import (
+    AFTER_NAMED_NUISANCE,
+    MAX_PHASE_SHARE,
+    SPEED_SHAPES,
+    along_travel_test,
+    structure_test,
+)
 from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
@@ -74,12 +82,18 @@ class HoldoutComparison:
     reference_gap_percent : float
         Holdout gap of the reference model, % (the nominal model's unless another
         reference was given).
+    nominal_sse, sse : ndarray or None
+        Per-segment squared errors of the nominal and of the other model on HOLDOUT
+        (rows: simulated speed, (rad/s)², and equation error, (rad/s²)²), so that a
+        model's errors on two pairs of runs with the same segments can be compared.
     """
 
     nominal_gap_percent: float
     gap_percent: float
     test: PairedTest
     reference_gap_percent: float = float("nan")
+    nominal_sse: np.ndarray | None = None
+    sse: np.ndarray | None = None
 
 
 def compare_on_holdout(train: Run, holdout: Run,
@@ -111,7 +125,8 @@ def compare_on_holdout(train: Run, holdout: Run,
     other = bench.score_model(model_of(base_spec, bench.train))
     return HoldoutComparison(nominal_gap_percent=nominal.gap, gap_percent=other.gap,
                              test=paired_improvement(reference.sse, other.sse),
-                             reference_gap_percent=reference.gap)
+                             reference_gap_percent=reference.gap,
+                             nominal_sse=nominal.sse, sse=other.sse)
 
 
 def diagnose(train: Run, holdout: Run, kt: float | None = None,
@@ -182,8 +197,13 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     residual_train = equation_residual(final.model, tr)
     structure = structure_test(residual_train, tr, residual_final, ho, bench.seg.index)
     along = along_travel_test(residual_train, tr, residual_final, ho, bench.seg.index)
+    speed = (structure_test(residual_train, tr, residual_final, ho, bench.seg.index,
+                            SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True).test
+             if chosen else None)
     left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
-                       along.test.p_value, named=bool(chosen))
+                       along.test.p_value, named=bool(chosen),
+                       p_speed=speed.p_value if speed else 1.0,
+                       speed_shrink=speed.shrink if speed else 0.0)
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -211,11 +231,13 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         noise_gap_percent=noise_gap,
         structure_p_value=structure.test.p_value,
         position_structure_p_value=along.test.p_value,
+        speed_structure_p_value=speed.p_value if speed else None,
+        speed_structure_shrink=speed.shrink if speed else None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions
                + _approximation_note(base.gap, final.gap, noise_gap, left)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
-                                 along.test.p_value) + _phase_note(along.phase_share)),
+                                 along.test.p_value, speed) + _phase_note(along.phase_share)),
         steps=steps), traces
 
 
@@ -234,18 +256,24 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
 
 
 def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,
-                    p_shapes: float, p_along: float) -> list[str]:
-    """Why a remainder is ``unexplained`` by its shape rather than its size."""
+                    p_shapes: float, p_along: float, speed: PairedTest | None) -> list[str]:
+    """Why a remainder is ``unexplained`` by its shape rather than its size (``speed``:
+    the speed shapes' test after named effects, None with nothing named)."""
     if not left:
         return []
     if verdict_gap > UNEXPLAINED_FACTOR * noise_gap and (
             beyond_noise_percent(verdict_gap, noise_gap)
             >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap)):
         return []
-    return [f"the gap left ({verdict_gap:.2f} %, noise {noise_gap:.2f} %) is small, but "
-            f"its equation error holds a shape no noise makes: speed, current-level and "
-            f"time shapes p = {p_shapes:.2g}, a friction level or torque along the travel "
-            f"p = {p_along:.2g} (fitted on TRAIN, tested on HOLDOUT)"]
+    shapes = (f"a torque growing with the speed beyond a friction level and a slope "
+              f"p = {speed.p_value:.2g} (shrink of the equation error {speed.shrink:.2f})"
+              if speed else f"speed, current-level and time shapes p = {p_shapes:.2g}")
+    return [f"the gap left ({verdict_gap:.2f} %, noise {noise_gap:.2f} %) is "
+            f"{'within what the effects approximate' if speed else 'small'}, but its "
+            f"equation error holds a shape no noise makes"
+            f"{', nor the vocabulary models named' if speed else ''}: "
+            f"{shapes}, a friction level or torque along the travel p = {p_along:.2g} "
+            "(fitted on TRAIN, tested on HOLDOUT)"]
 
 
 def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool

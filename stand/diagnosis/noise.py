@@ -26,7 +26,7 @@ import numpy as np
 
 from stand.diagnosis.model import FittedModel
 from stand.diagnosis.signals import Signals
-from stand.diagnosis.significance import FAMILY_ALPHA
+from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
 from stand.ident.noise import MAD_TO_SIGMA
 
 #: A gap that remains above this many times the gap noise explains
@@ -80,14 +80,18 @@ def explained_percent(nominal_gap: float, verdict_gap: float) -> float:
 
 
 def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
-                p_shapes: float = 1.0, p_along: float = 1.0, named: bool = False) -> bool:
+                p_shapes: float = 1.0, p_along: float = 1.0, named: bool = False,
+                p_speed: float = 1.0, speed_shrink: float = 0.0) -> bool:
     """Whether the gap the verdict's effects leave (%, ``verdict_gap``; the nominal
     model's ``nominal_gap`` when none is ``named``) is ``unexplained``.
 
     ``p_shapes`` and ``p_along`` are the p-values of the two tests of what the effects
     leave (:func:`stand.diagnosis.structure.structure_test`: speed, current-level and
     time shapes; :func:`~stand.diagnosis.structure.along_travel_test`: a friction level or
-    torque varying along the travel).
+    torque varying along the travel). ``p_speed`` and ``speed_shrink`` are those of the
+    speed shapes alone beside a dry friction level, after named effects, on the samples
+    where the current changes least (``structure_test`` with ``SPEED_SHAPES``,
+    ``AFTER_NAMED_NUISANCE`` and ``steady_current``).
 
     * Nothing named and a gap within ``UNEXPLAINED_FACTOR`` times ``noise_gap``: only
       if either test passes at ``FAMILY_ALPHA`` shared between the two (Bonferroni):
@@ -97,15 +101,22 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
       ``APPROXIMATION_SHARE`` of what the effects explain (see the module docstring);
       with nothing named, always.
     * Otherwise, after named effects, only if the remainder varies along the travel
-      (``p_along`` below ``FAMILY_ALPHA``), which none of the vocabulary's models make,
-      so it is not their approximation. Speed and current shapes do not count after a
-      named effect: the vocabulary's own models leave them (a shaft that sticks, a rigid
-      contact, a ripple under a speed loop).
+      (``p_along``), or, beyond the noise (the first condition's factor) though below the
+      approximation share, holds a torque that grows with the speed other than a
+      friction level and a slope (``p_speed``, its shrink of HOLDOUT's equation error
+      at least ``MIN_SHRINK``, the diagnosis' least shrink that counts); each test at
+      ``FAMILY_ALPHA`` shared between the two. None of the vocabulary's models leaves
+      either shape, so neither is their approximation. Within the noise the speed shape
+      does not count after a named effect (what it finds there is of the size of the
+      vocabulary models' own small errors), nor do the current shapes anywhere after
+      one: a shaft that sticks leaves a torque error at small currents that they take
+      in part.
     """
-    if verdict_gap > UNEXPLAINED_FACTOR * noise_gap and (
-            beyond_noise_percent(verdict_gap, noise_gap)
-            >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap)):
+    beyond = verdict_gap > UNEXPLAINED_FACTOR * noise_gap
+    if beyond and (beyond_noise_percent(verdict_gap, noise_gap)
+                   >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap)):
         return True
     if named:
-        return p_along < FAMILY_ALPHA
+        speed = p_speed if beyond and speed_shrink >= MIN_SHRINK else 1.0
+        return min(p_along, speed) < FAMILY_ALPHA / 2
     return min(p_shapes, p_along) < FAMILY_ALPHA / 2

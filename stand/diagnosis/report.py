@@ -158,6 +158,11 @@ class Diagnosis(JsonResult):
     position_structure_p_value : float or None
         The same test with the position shapes alone (a dry friction whose level changes
         along the travel).
+    speed_structure_p_value, speed_structure_shrink : float or None
+        After named effects: the test with the speed shapes alone, beside a dry friction
+        level (a torque that grows with the speed other than a level and a slope), on the
+        samples where the current changes least, its p-value and its shrink of HOLDOUT's
+        equation error there; None with nothing named.
     """
 
     gap_percent: float
@@ -178,6 +183,8 @@ class Diagnosis(JsonResult):
     noise_gap_percent: float | None = None
     structure_p_value: float | None = None
     position_structure_p_value: float | None = None
+    speed_structure_p_value: float | None = None
+    speed_structure_shrink: float | None = None
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,15 @@ from stand.errors import InputError
 SHAPES: tuple[str, ...] = ("omega_abs_omega", "omega_cubed", "i_abs_i", "i_cubed", "i_time")
 #: Columns fitted beside them and kept in the null model.
 NUISANCE: tuple[str, ...] = ("constant", "current", "omega", "current_rate", "jerk")
+#: The speed shapes alone: what a torque that grows with the speed other than linearly
+#: leaves (a fan, an eddy-current brake), tested after named effects
+#: (:data:`AFTER_NAMED_NUISANCE`, on the samples of steady current: :func:`steady_samples`).
+SPEED_SHAPES: tuple[str, ...] = ("omega_abs_omega", "omega_cubed")
+#: Beside those, after named effects: a dry friction level, ``sign(ω)``. What the
+#: vocabulary's friction models leave of a real friction (a shaft that sticks, a
+#: smoothed sign) is a level near standstill that a speed shape would otherwise take in
+#: part; a torque that changes with the speed beyond a level and a slope is not one.
+AFTER_NAMED_NUISANCE: tuple[str, ...] = (*NUISANCE, "dry_friction")
 #: Beside those, for the test along the travel: a level drifting over the run (on a run
 #: that turns one way the position grows with time, and a slow order of the position
 #: would stand for any drift).
@@ -98,6 +107,7 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
         "time": lambda: tau, "time_squared": lambda: tau * tau - 1 / 12,
         "i_abs_i": lambda: i * np.abs(i), "i_cubed": lambda: i**3, "i_time": lambda: i * tau,
         "constant": lambda: np.ones(len(sig)), "current": lambda: i, "omega": lambda: w,
+        "dry_friction": lambda: np.sign(sig.omega_f),
         "current_rate": lambda: np.gradient(i, sig.dt_s) * sig.dt_s,
         "jerk": lambda: np.gradient(sig.accel_f, sig.dt_s),
     }
@@ -106,6 +116,21 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
         # the speed law's current: what its gains' errors leave are its parts
         out = np.column_stack([out, sig.loop_parts / scales.current])
     return out
+
+
+def steady_samples(sig: Signals) -> np.ndarray:
+    """Weights 1 for the samples whose low-passed current changes by at most its median
+    change between samples, 0 for the others (half the run).
+
+    The sampled current stands for the drive's torque between samples; where it changes
+    fast (a speed loop's kick, the step of a command) the current between the samples
+    is what the models miss most, and that miss depends on the motion (the loop's speed
+    error, the back-EMF the drive's voltage works against), not on a torque of the
+    stand. Where it changes little the samples hold the torque that drove the shaft."""
+    if _FILTERED_CURRENT not in sig.cache:
+        sig.cache[_FILTERED_CURRENT] = sig.filt(sig.current)
+    change = np.abs(np.gradient(sig.cache[_FILTERED_CURRENT]))
+    return (change <= np.median(change)).astype(float)
 
 
 def _predictor(x_train: np.ndarray, e_train: np.ndarray) -> np.ndarray:
@@ -117,7 +142,9 @@ def _predictor(x_train: np.ndarray, e_train: np.ndarray) -> np.ndarray:
 
 def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout: np.ndarray,
                    holdout: Signals, index: np.ndarray,
-                   shapes: tuple[str, ...] = SHAPES) -> StructureTest:
+                   shapes: tuple[str, ...] = SHAPES,
+                   nuisance: tuple[str, ...] = NUISANCE,
+                   steady_current: bool = False) -> StructureTest:
     """Whether the equation error a model leaves holds structure beyond noise.
 
     Parameters
@@ -131,6 +158,12 @@ def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout:
         HOLDOUT's segments (segments × samples), as the diagnosis scores them.
     shapes : tuple of str
         The shapes tested (:data:`SHAPES` or a part of them).
+    nuisance : tuple of str
+        The columns fitted beside them and kept in the null model (:data:`NUISANCE`, or
+        :data:`AFTER_NAMED_NUISANCE` after named effects).
+    steady_current : bool
+        Fit and test on the samples of each run whose current changes least (by at most
+        the median change between samples, :func:`steady_samples`) only.
 
     Returns
     -------
@@ -141,15 +174,17 @@ def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout:
     unknown = sorted(set(shapes) - set(SHAPES))
     if unknown or not shapes:
         raise InputError(f"shapes must be a non-empty subset of {SHAPES}, got {shapes}")
-    x_tr, x_ho = (np.column_stack([columns(sig, scales, NUISANCE),
+    x_tr, x_ho = (np.column_stack([columns(sig, scales, nuisance),
                                    columns(sig, scales, tuple(shapes))])
                   for sig in (train, holdout))
     edge = slice(int(usable[0]), len(train) - int(usable[0]))
     n_nuis = x_tr.shape[1] - len(shapes)
-    null = _predictor(x_tr[edge, :n_nuis], residual_train[edge])
-    full = _predictor(x_tr[edge], residual_train[edge])
-    base = residual_holdout - x_ho[:, :n_nuis] @ null
-    cand = residual_holdout - x_ho @ full
+    w_tr, w_ho = ((steady_samples(sig) if steady_current else np.ones(len(sig)))
+                  for sig in (train, holdout))
+    null = _predictor(x_tr[edge, :n_nuis] * w_tr[edge, None], residual_train[edge] * w_tr[edge])
+    full = _predictor(x_tr[edge] * w_tr[edge, None], residual_train[edge] * w_tr[edge])
+    base = (residual_holdout - x_ho[:, :n_nuis] @ null) * w_ho
+    cand = (residual_holdout - x_ho @ full) * w_ho
     test = paired_improvement(np.sum(base[index] ** 2, axis=1),
                               np.sum(cand[index] ** 2, axis=1))
     return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
@@ -320,5 +355,6 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
                          phase_share=share)
 
 
-__all__ = ["MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES", "TRAVEL_NUISANCE", "StructureTest",
+__all__ = ["AFTER_NAMED_NUISANCE", "MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES",
+           "SPEED_SHAPES", "TRAVEL_NUISANCE", "StructureTest", "steady_samples",
            "along_travel_test", "columns", "phase_share", "phase_terms", "structure_test"]

@@ -117,6 +117,12 @@ def main(argv: list[str] | None = None) -> int:
           f"counted wrong when called Coulomb friction; {summary['resolved_differs']} such "
           f"in-vocabulary cases): top-1 {_percent(summary['in_vocabulary_top1_strict'])}, "
           f"pairs exact {_percent(summary['pairs_exact_strict'])}")
+    print(f"cases whose every planted effect shows against its twin runs without it "
+          f"(same command, sensors and noise; oracle.visible_against_twin) -- a diagnostic, "
+          f"NOT the headline: pairs exact {_percent(summary['pairs_shown_exact'])} of "
+          f"{summary['pairs_shown']}; outside unexplained "
+          f"{_percent(summary['outside_shown_unexplained'])} of {summary['outside_shown']}, "
+          f"none {summary['outside_shown_none']}")
     source = "the rows given" if args.summarize else f"{args.outside_set} set"
     print(f"outside the vocabulary ({source}): unexplained "
           f"{_percent(summary['outside_unexplained'])} of "

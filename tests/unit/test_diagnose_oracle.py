@@ -3,7 +3,7 @@ beyond noise is visible, one far below the noise is not (answer-key side only)."
 
 from __future__ import annotations
 
-from tests.bench.diagnose.oracle import resolved_truth, visibility
+from tests.bench.diagnose.oracle import ENGINE_TESTS, resolved_truth, visibility, visible_against_twin
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs
 
 
@@ -42,3 +42,23 @@ def test_a_static_excess_below_the_noise_resolves_to_coulomb_friction() -> None:
     assert result.nested == {"stribeck_friction": "coulomb_friction"}, result
     assert resolved_truth(["stribeck_friction", "cogging"], result.nested) == [
         "coulomb_friction", "cogging"]
+
+
+def test_an_effect_shows_against_its_twin_runs_only_when_it_changes_the_errors() -> None:
+    # twin runs: the same commands, sensors and noise seeds without the effect
+    twin = stand_runs({})
+    friction = {"coulomb_friction": {"Tc": 0.004}}
+    assert visible_against_twin(stand_runs(friction), twin, MOTOR, {}, ENGINE_TESTS)
+    # 2e-6 N·m, far below the current noise: no more error than the twin's
+    weak = {"coulomb_friction": {"Tc": 2e-6}}
+    assert not visible_against_twin(stand_runs(weak), twin, MOTOR, {}, ENGINE_TESTS)
+
+
+def test_a_second_effect_shows_against_the_exact_model_of_the_first() -> None:
+    # cogging beside the friction, judged with the friction's exact model in both
+    friction = {"coulomb_friction": {"Tc": 0.004}}
+    both = {**friction, "cogging": {"Tcog": 0.003, "N": 12, "phi": 0.5}}
+    twin = stand_runs(friction)
+    assert visible_against_twin(stand_runs(both), twin, MOTOR, friction, ENGINE_TESTS - 1)
+    tiny = {**friction, "cogging": {"Tcog": 3e-6, "N": 12, "phi": 0.5}}
+    assert not visible_against_twin(stand_runs(tiny), twin, MOTOR, friction, ENGINE_TESTS - 1)

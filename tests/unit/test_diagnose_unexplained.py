@@ -15,6 +15,7 @@ import numpy as np
 from stand.diagnosis import diagnose
 from stand.diagnosis.noise import APPROXIMATION_SHARE, UNEXPLAINED_FACTOR, unexplained
 from stand.diagnosis.plots import worst_window
+from stand.diagnosis.significance import FAMILY_ALPHA
 from stand.effects import UNEXPLAINED
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
@@ -44,6 +45,35 @@ def test_an_effect_outside_the_vocabulary_beside_a_named_one_is_unexplained_afte
     result = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]},
                                   extra_torque=fan), kt=MOTOR.Kt)
     assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
+
+
+def test_an_eddy_brake_beside_coulomb_friction_is_unexplained_after_it() -> None:
+    # an eddy-current brake T·2x/(1 + x²), x = ω/ω_c, peaking at the run's typical speed
+    # (ω_c = 100 rad/s) at twice the planted friction level (T = 8 mN·m): Coulomb friction
+    # and D/J take most of it, and what is left (beyond the noise, less than the friction
+    # explains) is a torque that grows with the speed other than a level and a slope
+    def eddy(theta: float, omega: float, i: float, t: float) -> float:
+        x = omega / 100.0
+        return 0.008 * 2 * x / (1 + x * x)
+
+    result = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]},
+                                  extra_torque=eddy), kt=MOTOR.Kt)
+    assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
+    assert result.speed_structure_p_value is not None
+    assert result.speed_structure_p_value < FAMILY_ALPHA / 2
+    assert any("grow" in note for note in result.notes), result.notes
+
+
+def test_a_speed_shape_after_a_named_effect_counts_only_beyond_the_noise() -> None:
+    noise = 0.2
+    # the friction took 10 % to 1 %: its approximation, unless the speed shape is there
+    assert not unexplained(10.0, 1.0, noise, named=True)
+    assert unexplained(10.0, 1.0, noise, named=True, p_speed=1e-6, speed_shrink=0.2)
+    # a shape too weak to count (below the least shrink) or not significant
+    assert not unexplained(10.0, 1.0, noise, named=True, p_speed=1e-6, speed_shrink=0.01)
+    assert not unexplained(10.0, 1.0, noise, named=True, p_speed=0.01, speed_shrink=0.2)
+    # within the noise factor the speed shape does not count after a named effect
+    assert not unexplained(10.0, 0.5, noise, named=True, p_speed=1e-6, speed_shrink=0.2)
 
 
 def test_a_remainder_beyond_noise_smaller_than_what_the_effects_explain_is_their_model() -> None:

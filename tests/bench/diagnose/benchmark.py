@@ -36,7 +36,7 @@ from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, read_run, write_run
-from tests.bench.diagnose.oracle import resolved_truth, visibility
+from tests.bench.diagnose.oracle import ENGINE_TESTS, resolved_truth, visibility, visible_against_twin
 from tests.bench.diagnose.outside import HELD_OUT, OUTSIDE, draw_outside, outside_torque
 from tests.bench.diagnose.snr import effect_snr
 
@@ -254,18 +254,39 @@ DRAWS: dict[str, Callable[[np.random.Generator, Case, float], dict[str, float]]]
 }
 
 
-def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S) -> dict[str, np.ndarray]:
-    """Columns of the TRAIN (``which=0``) or HOLDOUT (1) run of ``case``."""
-    run = _simulate(case, which, duration_s)
+def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S,
+                  effects: dict[str, dict[str, float]] | None = None) -> dict[str, np.ndarray]:
+    """Columns of the TRAIN (``which=0``) or HOLDOUT (1) run of ``case``; ``effects``
+    replaces its effects and drops its outside effect (a twin run: the same command,
+    sensors and noise seed)."""
+    run = _simulate(case, which, duration_s, effects)
     # a speed-mode run holds its target, as the stand controller records it
     names = ("time_s", "current_A", "position_rad", TARGET_COLUMN)
     return {k: run[k] for k in names if k in run}
+
+
+#: Twin runs of the case simulated last (the SNR's and the visibility's share the
+#: effect-free HOLDOUT), by (seed, index, run, duration, effects).
+_TWINS: dict[tuple[int, int, int, float, str], Run] = {}
 
 
 def _simulate(case: Case, which: int, duration_s: float,
               effects: dict[str, dict[str, float]] | None = None) -> Run:
     """The TRAIN (``which=0``) or HOLDOUT (1) run of ``case``, with the truth in ``meta``;
     ``effects`` replaces the case's effects (same command, sensors and noise seed)."""
+    if effects is None:
+        return _simulated(case, which, duration_s, None)
+    key = (case.seed, case.index, which, duration_s, repr(sorted(effects.items())))
+    if any(k[:2] != key[:2] for k in _TWINS):
+        _TWINS.clear()
+    if key not in _TWINS:
+        _TWINS[key] = _simulated(case, which, duration_s, effects)
+    return _TWINS[key]
+
+
+def _simulated(case: Case, which: int, duration_s: float,
+               effects: dict[str, dict[str, float]] | None) -> Run:
+    """:func:`_simulate` without the cache."""
     seed = case.seed * 100_003 + case.index * 2 + which
     chosen = case.effects if effects is None else effects
     plant = MotorPlant(case.motor, case.drive, case.sensors, Effects.from_mapping(chosen),
@@ -299,6 +320,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         elapsed = time.perf_counter() - start
         oracle = (visibility(train, holdout, case.motor, case.effects)
                   if case.effects else None)
+        each = _visible_each(case, (train, holdout), Path(folder), duration_s)
     predicted = result.verdict.split("+")
     named = [p for p in predicted if p != UNEXPLAINED] or predicted
     gaps = {e.effect: e for e in result.effects}
@@ -310,10 +332,14 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "unexplained": UNEXPLAINED in predicted, "noise_gap_percent": result.noise_gap_percent,
         "structure_p_value": result.structure_p_value,
         "position_structure_p_value": result.position_structure_p_value,
+        "speed_structure_p_value": result.speed_structure_p_value,
+        "speed_structure_shrink": result.speed_structure_shrink,
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
         "noise_floor_percent": result.noise_floor_percent,
         "true_shrink": true_shrink,
         "visible": oracle.visible if oracle else True,
+        # each planted effect against its twin runs without it (oracle.visible_against_twin)
+        "visible_each": each,
         "oracle_shrink": oracle.shrink if oracle else None,
         "oracle_p": oracle.p_value if oracle else None, "seconds": elapsed, "samples": len(holdout),
         "mode": case.mode, "kind": case.kind, "dt_s": case.dt_s, "effects": case.effects,
@@ -327,6 +353,26 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
     }
 
 
+def _visible_each(case: Case, runs: tuple[Run, Run], folder: Path, duration_s: float
+                  ) -> dict[str, bool]:
+    """Whether each planted effect of a pair, or the outside effect, shows against the
+    case's twin runs without it (:func:`tests.bench.diagnose.oracle.visible_against_twin`):
+    alone or first at the first step's level, beside another planted effect at the
+    second step's."""
+    planted = [*case.effects, *case.outside]
+    out: dict[str, bool] = {}
+    if len(planted) < 2 and not case.outside:
+        return out  # a single vocabulary effect: the oracle's "visible" judges it
+    for name in planted:
+        others = {k: v for k, v in case.effects.items() if k != name}
+        twin = tuple(read_run(write_run(folder / f"twin_{name}_{k}.csv",
+                                        simulate_case(case, k, duration_s, others)), "single")
+                     for k in (0, 1))
+        tests = ENGINE_TESTS - 1 if len(planted) > 1 else ENGINE_TESTS
+        out[name] = visible_against_twin(runs, (twin[0], twin[1]), case.motor, others, tests)
+    return out
+
+
 def rescore(row: dict[str, Any]) -> dict[str, Any]:
     """``row`` with its ``unexplained`` word decided again by the current rule
     (:func:`stand.diagnosis.noise.unexplained`) from the gaps it holds: the rule reads
@@ -337,8 +383,10 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
     named = [p for p in row["verdict"].split("+") if p not in (UNEXPLAINED, "none")]
     p_shapes, p_along = (1.0 if row.get(key) is None else row[key]
                          for key in ("structure_p_value", "position_structure_p_value"))
+    p_speed = 1.0 if row.get("speed_structure_p_value") is None else row["speed_structure_p_value"]
     left = unexplained(row["gap_percent"], row["verdict_gap_percent"], row["noise_gap_percent"],
-                       p_shapes, p_along, named=bool(named))
+                       p_shapes, p_along, named=bool(named), p_speed=p_speed,
+                       speed_shrink=row.get("speed_structure_shrink") or 0.0)
     words = named + ([UNEXPLAINED] if left else [])
     verdict = "+".join(words) if words else "none"
     shown = [p for p in verdict.split("+") if p != UNEXPLAINED] or [verdict]
@@ -386,6 +434,9 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
               ) -> float | None:
         return float(np.mean([key(r) for r in subset])) if subset else None
 
+    def shown(subset: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        return [r for r in subset if all(r.get("visible_each", {}).values())]
+
     classes = {
         "in_vocabulary_cases": len(inside),
         "in_vocabulary_top1": share(inside, lambda r: r["top1"]),
@@ -400,6 +451,12 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
             r["verdict"] == UNEXPLAINED for r in inside),
         "pair_cases": len(pairs), "pairs_exact": share(pairs, lambda r: r["exact"]),
         "pairs_exact_strict": share(pairs, lambda r: r.get("exact_strict", r["exact"])),
+        # a diagnostic beside the headline: the cases whose every planted effect shows
+        # against its twin runs without it (row "visible_each"; rows before it count)
+        "pairs_shown": len(shown(pairs)), "pairs_shown_exact": share(shown(pairs), lambda r: r["exact"]),
+        "outside_shown": len(shown(outside)),
+        "outside_shown_unexplained": share(shown(outside), lambda r: r.get("unexplained", False)),
+        "outside_shown_none": sum(r["verdict"] == "none" for r in shown(outside)),
         "outside_cases": len(outside),
         "outside_unexplained": share(outside, lambda r: r.get("unexplained", False)),
         "outside_none": sum(r["verdict"] == "none" for r in outside),

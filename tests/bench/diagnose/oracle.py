@@ -33,6 +33,7 @@ from stand import effects as vocabulary
 from stand.diagnosis.engine import compare_on_holdout
 from stand.diagnosis.model import EDGE_SAMPLES, FittedModel, ModelSpec, regressors
 from stand.diagnosis.signals import Signals
+from stand.diagnosis.significance import paired_improvement
 from stand.effects import EFFECTS
 from stand.physics.effects import Effects
 from stand.physics.parts import MotorParams
@@ -141,4 +142,30 @@ def resolved_truth(truth: list[str], nested: dict[str, str]) -> list[str]:
     return [nested.get(name, name) for name in truth]
 
 
-__all__ = ["Visibility", "resolved_truth", "visibility"]
+def visible_against_twin(runs: tuple[Run, Run], twin: tuple[Run, Run], motor: MotorParams,
+                         others: dict[str, dict[str, float]], tests: int) -> bool:
+    """Whether one planted effect shows at all, by the same physics for every effect
+    (of the vocabulary or outside it): the exact model of the case's *other* planted
+    effects (the nominal model when there are none), identified as the diagnosis would,
+    errs more on the case's runs ``runs`` (TRAIN, HOLDOUT) than on its ``twin`` runs,
+    the same command, sensors and noise seed without that effect, by the diagnosis' own
+    paired test at the level of ``tests`` candidates (its first step: one per
+    vocabulary effect; a second effect: one fewer) and its least shrink.
+
+    A re-identified model takes up part of an effect it lacks (``Kt/J`` an elastic
+    load far below its resonance, ``D/J`` most of a fan drag): an effect that leaves
+    no more error than its twin's is invisible in that run, and no diagnosis can be
+    asked to name it, nor to call its gap beyond noise."""
+    planted = Effects.from_mapping(others, "other planted effects")
+
+    def model_of(base: ModelSpec, sig: Signals) -> FittedModel:
+        return _true_model(base, motor, planted, sig)
+
+    with_it = compare_on_holdout(*runs, model_of)
+    without = compare_on_holdout(*twin, model_of)
+    if with_it.sse is None or without.sse is None or with_it.sse.shape != without.sse.shape:
+        return True  # not comparable: count it, as the headline does
+    return paired_improvement(with_it.sse, without.sse).significant(tests)
+
+
+__all__ = ["Visibility", "resolved_truth", "visibility", "visible_against_twin"]
