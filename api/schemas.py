@@ -100,6 +100,15 @@ class RunRequest(_Body):
         return {"profile": self.profile, "overrides": self.overrides.model_dump(exclude_none=True)}
 
 
+#: ``--motor`` of the CLI: a shipped motor profile whose drive supply, current limit and
+#: armature start the speed-loop refinement's model of a loop that saturates.
+Motor = Annotated[str | None, Field(
+    pattern=PROFILE_NAME,
+    description="motor profile name (GET /profiles: motors) whose drive supply, current "
+                "limit, R, L and Kt model a speed loop that saturates its supply; null: "
+                "not modelled")]
+
+
 class IdentifyRequest(_Body):
     """``stand identify``: Q-matrix identification of one single-motor run (seed 000)."""
 
@@ -108,6 +117,7 @@ class IdentifyRequest(_Body):
     no_load_current_A: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 0.0
     effects: Effects = "auto"
     estimator: Estimator = None
+    motor: Motor = None
 
 
 class TorqueConstantRequest(_Body):
@@ -120,6 +130,7 @@ class TorqueConstantRequest(_Body):
     compensate: bool = True
     effects: Effects = "auto"
     estimator: Estimator = None
+    motor: Motor = None
 
 
 class EfficiencyRequest(_Body):

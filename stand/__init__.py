@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from stand.ident.efficiency import EfficiencyResult, efficiency
     from stand.ident.identify import IdentifyResult
     from stand.ident.identify import identify_run as identify
+    from stand.ident.supply import DriveSupply
     from stand.ident.torque_constant import TorqueConstantResult, torque_constant
     from stand.profiles import MotorProfile, StandProfile, load_motor, load_stand
     from stand.runfile import Run, read_run
@@ -57,6 +58,7 @@ _LAZY: dict[str, tuple[str, str]] = {
     "simulate": ("stand.simulation", "simulate"),
     "identify": ("stand.ident.identify", "identify_run"),
     "IdentifyResult": ("stand.ident.identify", "IdentifyResult"),
+    "DriveSupply": ("stand.ident.supply", "DriveSupply"),
     "torque_constant": ("stand.ident.torque_constant", "torque_constant"),
     "TorqueConstantResult": ("stand.ident.torque_constant", "TorqueConstantResult"),
     "efficiency": ("stand.ident.efficiency", "efficiency"),
@@ -76,7 +78,7 @@ _LAZY: dict[str, tuple[str, str]] = {
 }
 
 __all__ = [
-    "BusError", "Diagnosis", "EffectScore", "EfficiencyResult", "ExperimentProfile",
+    "BusError", "Diagnosis", "DriveSupply", "EffectScore", "EfficiencyResult", "ExperimentProfile",
     "IdentifyResult", "InputError", "LimitError", "MotorProfile", "NotExcitedError",
     "NotFoundError", "ProfileError", "Run", "RunAborted", "RunFileError", "SolverError",
     "StandError", "StandProfile", "StepResult", "TorqueConstantResult", "Where", "diagnose",

@@ -28,6 +28,7 @@ from api.schemas import (
 from api.uploads import forget_uploads, parse_body
 from stand import diagnose, efficiency, identify, step_identify, torque_constant
 from stand.errors import SolverError, StandError
+from stand.ident.supply import motor_supply
 from stand.jsonable import JsonResult
 from stand.runfile import RunKind
 from stand.storage import Storage
@@ -38,13 +39,15 @@ log = logging.getLogger("stand.api")
 
 def _identify(body: IdentifyRequest, runs: dict[str, Any]) -> JsonResult:
     return identify(runs["run"], method=body.method, no_load_current_A=body.no_load_current_A,
-                    effects=body.effects, estimator=body.estimator)
+                    effects=body.effects, estimator=body.estimator,
+                    supply=motor_supply(body.motor))
 
 
 def _torque_constant(body: TorqueConstantRequest, runs: dict[str, Any]) -> JsonResult:
     return torque_constant(runs["no_load"], runs["loaded"], body.added_inertia,
                            method=body.method, compensate=body.compensate,
-                           effects=body.effects, estimator=body.estimator)
+                           effects=body.effects, estimator=body.estimator,
+                           supply=motor_supply(body.motor))
 
 
 def _efficiency(body: EfficiencyRequest, runs: dict[str, Any]) -> JsonResult:

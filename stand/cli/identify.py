@@ -10,6 +10,7 @@ from stand import IdentifyResult, identify, read_run
 from stand.cli import options
 from stand.ident.derivatives import METHODS
 from stand.ident.identify import ESTIMATORS
+from stand.ident.supply import motor_supply
 
 LOG = logging.getLogger(__name__)
 
@@ -39,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> IdentifyResult:
     result = identify(read_run(args.run, "single"), args.method, args.no_load_current,
                       args.half_width, args.effects, args.estimator,
-                      options.motor_supply(args.motor))
+                      motor_supply(args.motor))
     if not args.json:  # human mode: the warnings on stderr, beside the summary
         for text in result.warnings:
             LOG.warning("warning: %s", text)

@@ -19,7 +19,6 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from stand.ident.supply import DriveSupply
 from stand.runfile import MIN_PERIOD_S
 
 #: Largest seed: numpy's legacy seeding range, 2**32 - 1.
@@ -187,13 +186,3 @@ def add_motor_supply(parser: argparse.ArgumentParser) -> None:
                              "limit, R, L and Kt start the speed-loop refinement's model of a "
                              "loop that saturates (R, L, Kt are refitted)")
 
-
-def motor_supply(name: str | None) -> DriveSupply | None:
-    """The :class:`~stand.ident.supply.DriveSupply` of motor profile ``name`` (None: none)."""
-    if name is None:
-        return None
-    from stand.profiles import load_motor
-
-    profile = load_motor(name)
-    return DriveSupply(profile.drive.supply_V, profile.motor.R, profile.motor.L,
-                       profile.motor.Kt, profile.drive.current_limit_A)

@@ -10,6 +10,7 @@ from stand import TorqueConstantResult, read_run, torque_constant
 from stand.cli import options
 from stand.ident.derivatives import METHODS
 from stand.ident.identify import ESTIMATORS
+from stand.ident.supply import motor_supply
 
 LOG = logging.getLogger(__name__)
 
@@ -44,7 +45,7 @@ def run(args: argparse.Namespace) -> TorqueConstantResult:
         [read_run(path, "single") for path in args.no_load],
         [read_run(path, "single") for path in args.loaded],
         args.added_inertia, args.method, not args.no_compensation, args.half_width,
-        args.effects, args.estimator, options.motor_supply(args.motor))
+        args.effects, args.estimator, motor_supply(args.motor))
     if not args.json:  # human mode: the warnings on stderr, beside the summary
         for text in result.warnings:
             LOG.warning("warning: %s", text)

@@ -50,3 +50,16 @@ class DriveSupply:
         for name in ("supply_V", "R", "L", "Kt"):
             if math.isinf(getattr(self, name)):
                 raise InputError(f"drive supply: {name} must be finite, got inf")
+
+
+
+def motor_supply(name_or_path: str | None) -> DriveSupply | None:
+    """The supply and current limit of motor profile ``name_or_path``'s drive, and its
+    motor's ``R``, ``L``, ``Kt`` (:func:`stand.profiles.load_motor`); None for None."""
+    if name_or_path is None:
+        return None
+    from stand.profiles import load_motor
+
+    profile = load_motor(name_or_path)
+    return DriveSupply(profile.drive.supply_V, profile.motor.R, profile.motor.L,
+                       profile.motor.Kt, profile.drive.current_limit_A)

@@ -239,6 +239,25 @@ def test_identify_takes_effects_and_estimator(client: httpx.Client) -> None:
     assert form.json()["estimator"] == "bc" and form.json()["effects"] == ["coulomb_friction"]
 
 
+def test_identify_takes_the_drive_supply_by_motor_profile(client: httpx.Client) -> None:
+    run = upload(client, run_csv(3), "supply.csv")
+    plain = client.post("/identify", json={"run": run, "effects": "coulomb_friction"})
+    told = client.post("/identify", json={"run": run, "effects": "coulomb_friction",
+                                          "motor": MOTOR})
+    assert told.status_code == 200, told.text
+    assert told.json()["inputs"]["motor"] == MOTOR
+    # a current-mode run has no speed loop to refine: the supply changes nothing
+    assert told.json()["Kt_over_J"] == plain.json()["Kt_over_J"]
+    unknown = client.post("/identify", json={"run": run, "motor": "no_such_motor"})
+    assert unknown.status_code == 404 and "no_such_motor" in unknown.text
+    for route, body in (("/identify", {"run": run}),
+                        ("/torque-constant", {"no_load": [run], "loaded": [run],
+                                              "added_inertia": 1e-5})):
+        path = client.post(route, json={**body, "motor": "../profiles/x.yaml"})
+        assert path.status_code == 422, path.text
+        assert ["body", "motor"] in [e["loc"] for e in path.json()["detail"]]
+
+
 @pytest.mark.parametrize(("field", "value", "expected"), [
     ("effects", "friction", "coulomb_friction"),
     ("effects", "", "expected 'auto', 'none'"),

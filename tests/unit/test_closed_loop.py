@@ -12,17 +12,17 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from stand.cli import main, options
+from stand.cli import main
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.signals import quantization_step
 from stand.errors import InputError
 from stand.excitation import excitation
-from stand.ident import closed_loop
+from stand.ident import loop_model
 from stand.ident.closed_loop import effect_inputs, fit_closed_loop
 from stand.ident.identify import SUPPLY_UNKNOWN, identify_run
 from stand.ident.noise import noise_sigma
 from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
-from stand.ident.supply import DriveSupply
+from stand.ident.supply import DriveSupply, motor_supply
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, SensorParams
 from stand.physics.plant import MotorPlant
@@ -78,15 +78,15 @@ def test_current_limit_between_samples_is_simulated() -> None:
 def test_modal_step_matches_the_matrix_exponential() -> None:
     # every mode of the drive (the law, the command at its limit, the supply applied),
     # over a whole period and a part of one
-    model = closed_loop._LoopModel(np.zeros(10), np.zeros(10), np.zeros(10),
+    model = loop_model.LoopModel(np.zeros(10), np.zeros(10), np.zeros(10),
                                    np.ones((9, 1)), 3e-3, 0, 1.0, 1.0, True, True)
     a, d, kp, ki, tau, b = 1200.0, 12.0, 0.05, 0.7, 2e-4, 3.0
     volts, ohms, emf, limit = 2e4, 2e3, 50.0, 3.0
     p = np.array([a, d, kp, ki, np.log(tau), 0, 0, 0, 0, 0, 0, b,
                   np.log(volts), np.log(ohms), np.log(emf), limit])
-    rows = {closed_loop.LAW: ([0, -kp / tau, 1 / tau, -1 / tau], kp / tau, 0.0),
-            closed_loop.LIMIT_UP: ([0, 0, 0, -1 / tau], 0.0, limit / tau),
-            closed_loop.SUPPLY_DOWN: ([0, -emf, 0, -ohms], 0.0, -volts)}
+    rows = {loop_model.LAW: ([0, -kp / tau, 1 / tau, -1 / tau], kp / tau, 0.0),
+            loop_model.LIMIT_UP: ([0, 0, 0, -1 / tau], 0.0, limit / tau),
+            loop_model.SUPPLY_DOWN: ([0, -emf, 0, -ohms], 0.0, -volts)}
     modes = model._modes(p)
     for mode, (row, from_target, constant) in rows.items():
         A = np.array([[0, 1, 0, 0], [0, -d, 0, a], [0, -ki, 0, 0], row], dtype=float)
@@ -156,8 +156,7 @@ def test_effect_columns_follow_the_spec() -> None:
 def test_cli_motor_profile_tells_the_supply(tmp_path: Path, capsys: Any) -> None:
     # `stand identify --motor PROFILE` reads the drive's supply and the motor's armature
     # from the profile; an unknown profile is bad input (exit 2, named on stderr).
-    assert options.motor_supply("crouzet_82800502") == DriveSupply(24.0, 1.9, 1.5e-3,
-                                                                   0.0527, 3.0)
+    assert motor_supply("crouzet_82800502") == DriveSupply(24.0, 1.9, 1.5e-3, 0.0527, 3.0)
     run, _ = speed_run(5.0)
     path = write_run(tmp_path / "run.csv", {c: run[c] for c in (
         "time_s", "current_A", "position_rad", TARGET_COLUMN)})
