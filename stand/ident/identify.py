@@ -311,6 +311,7 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
         warnings.append(loop.message)
         if refined is not None:
             warnings.append(refined.message)
+        est = est.with_variance("current", missed_kick_variance(loop, est, run.dt_s))
     elif loop is not None and loop.holds:
         if refined is not None:
             warnings.append(refined.message)
@@ -322,11 +323,30 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
                             "worse than the sampled current (the loop may saturate between "
                             "samples): the sampled current is used, and Kt/J may be high by "
                             "up to π·f_loop·Δt")
+            est = est.with_variance("current", missed_kick_variance(loop, est, run.dt_s))
     params = effect_params(spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes)
     timing = spec.delay + current_weight(spec, est)
     return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
                    warnings, estimator, timing)
+
+
+def missed_kick_variance(loop: SpeedLoop, est: Estimate, dt: float) -> float:
+    """Variance of Kt/J from the loop's kick between samples, where Kt/J comes from the
+    sampled current of a speed-loop run and no simulation of the loop holds.
+
+    The samples then miss up to ``π·f_loop·Δt`` of the current that accelerates the rotor
+    (``f_loop = kp·Kt/(2π·J)``, :mod:`stand.ident.speed_loop`), a bias of Kt/J of up to
+    that share which one run cannot tell from inertia. Known only as a bound, it enters
+    as a rectangular distribution of that half width (standard uncertainty
+    ``bound/√3``, as the GUM takes a bound), so that the interval keeps the warning's
+    promise. 0 where the law's ``kp`` is not positive (no bound is known).
+    """
+    a = est.value("current")
+    if not (loop.kp > 0 and a > 0):
+        return 0.0
+    bound = 0.5 * loop.kp * a * dt * a   # π·f_loop·Δt of Kt/J
+    return float(bound**2 / 3.0)
 
 
 def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
