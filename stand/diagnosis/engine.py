@@ -37,6 +37,7 @@ from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual
 from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
     UNEXPLAINED_FACTOR,
+    beyond_approximation,
     beyond_noise_percent,
     explained_percent,
     noise_floor,
@@ -261,9 +262,7 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
     the speed shapes' test after named effects, None with nothing named)."""
     if not left:
         return []
-    if verdict_gap > UNEXPLAINED_FACTOR * noise_gap and (
-            beyond_noise_percent(verdict_gap, noise_gap)
-            >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap)):
+    if beyond_approximation(nominal_gap, verdict_gap, noise_gap):
         return []
     shapes = (f"a torque growing with the speed beyond a friction level and a slope "
               f"p = {speed.p_value:.2g} (shrink of the equation error {speed.shrink:.2f})"

@@ -292,19 +292,24 @@ def _prefetch(specs: list[ModelSpec], sig: Signals) -> None:
         sig.cache[key] = column
 
 
+def velocity_resolution(sig: Signals) -> float:
+    """The run's velocity resolution, rad/s: ``VELOCITY_RESOLUTION_COUNTS`` encoder
+    steps per sample period."""
+    return VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s
+
+
 def friction_speed(sig: Signals) -> np.ndarray:
     """Speed at the sample instants the friction columns follow, rad/s: the central
     difference of the measured position (the low-passed speed rounds off the kink
     friction makes at a zero crossing, and crosses zero late), zero where it is below
     the velocity resolution of the run (a shaft at rest, or quantization)."""
-    resolution = VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s
     omega = sig.omega_meas
-    return np.where(np.abs(omega) > resolution, omega, 0.0)
+    return np.where(np.abs(omega) > velocity_resolution(sig), omega, 0.0)
 
 
 def velocity_sign(omega: np.ndarray, sig: Signals) -> np.ndarray:
     """``sign(ω)``, zero where ``|ω|`` is below the velocity resolution of the run."""
-    resolution = VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s
+    resolution = velocity_resolution(sig)
     return np.where(np.abs(omega) > resolution, np.sign(omega), 0.0)
 
 
@@ -480,4 +485,4 @@ def nominal() -> ModelSpec:
 
 __all__ = ["FittedModel", "ModelSpec", "equation_residual", "fit", "fit_residual_batch",
            "interval_current", "nominal", "periodic_column", "periodic_mean",
-           "regressors", "shifted", "velocity_sign"]
+           "regressors", "shifted", "velocity_resolution", "velocity_sign"]

@@ -79,6 +79,15 @@ def explained_percent(nominal_gap: float, verdict_gap: float) -> float:
     return math.sqrt(max(nominal_gap * nominal_gap - verdict_gap * verdict_gap, 0.0))
 
 
+def beyond_approximation(nominal_gap: float, verdict_gap: float, noise_gap: float) -> bool:
+    """Whether the gap the verdict's effects leave (%) is ``unexplained`` by its size:
+    beyond ``UNEXPLAINED_FACTOR`` times the noise's, and beyond the noise by at least
+    ``APPROXIMATION_SHARE`` of what the effects explain (see the module docstring)."""
+    return verdict_gap > UNEXPLAINED_FACTOR * noise_gap and (
+        beyond_noise_percent(verdict_gap, noise_gap)
+        >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap))
+
+
 def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
                 p_shapes: float = 1.0, p_along: float = 1.0, named: bool = False,
                 p_speed: float = 1.0, speed_shrink: float = 0.0) -> bool:
@@ -112,11 +121,10 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
       one: a shaft that sticks leaves a torque error at small currents that they take
       in part.
     """
-    beyond = verdict_gap > UNEXPLAINED_FACTOR * noise_gap
-    if beyond and (beyond_noise_percent(verdict_gap, noise_gap)
-                   >= APPROXIMATION_SHARE * explained_percent(nominal_gap, verdict_gap)):
+    if beyond_approximation(nominal_gap, verdict_gap, noise_gap):
         return True
     if named:
+        beyond = verdict_gap > UNEXPLAINED_FACTOR * noise_gap
         speed = p_speed if beyond and speed_shrink >= MIN_SHRINK else 1.0
         return min(p_along, speed) < FAMILY_ALPHA / 2
     return min(p_shapes, p_along) < FAMILY_ALPHA / 2

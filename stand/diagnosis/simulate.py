@@ -29,11 +29,11 @@ from stand.diagnosis.backlash_load import load_state
 from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
-    VELOCITY_RESOLUTION_COUNTS,
     FittedModel,
     interval_current,
     periodic_mean,
     shifted,
+    velocity_resolution,
 )
 from stand.diagnosis.signals import Signals
 
@@ -244,7 +244,7 @@ def friction_smoothing(sig: Signals) -> float:
     ``tanh(ω/ε)`` with ε the run's velocity resolution (as in :func:`velocity_sign`), at
     least ``FRICTION_SMOOTHING_FRACTION`` of its 95th-percentile speed. A physical
     friction is stepped as dry friction (:func:`.dry_friction.friction_step`)."""
-    return max(VELOCITY_RESOLUTION_COUNTS * sig.quant_rad / sig.dt_s,
+    return max(velocity_resolution(sig),
                FRICTION_SMOOTHING_FRACTION * sig.top_speed, 1e-12)
 
 

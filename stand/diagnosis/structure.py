@@ -95,12 +95,18 @@ def _scales(sig: Signals) -> _Scales:
 _FILTERED_CURRENT = ("structure", "filtered_current")
 
 
+def _filtered_current(sig: Signals) -> np.ndarray:
+    """The low-passed measured current, A, cached in ``sig`` (both tests and the steady
+    samples take it)."""
+    if _FILTERED_CURRENT not in sig.cache:
+        sig.cache[_FILTERED_CURRENT] = sig.filt(sig.current)
+    return sig.cache[_FILTERED_CURRENT]
+
+
 def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray:
     """The named shape or nuisance columns on ``sig``, in TRAIN's scales (samples × names)."""
     w = sig.omega_f / scales.omega
-    if _FILTERED_CURRENT not in sig.cache:  # both tests build their columns from it
-        sig.cache[_FILTERED_CURRENT] = sig.filt(sig.current)
-    i = sig.cache[_FILTERED_CURRENT] / scales.current
+    i = _filtered_current(sig) / scales.current
     tau = np.linspace(-0.5, 0.5, len(sig))
     made = {
         "omega_abs_omega": lambda: w * np.abs(w), "omega_cubed": lambda: w**3,
@@ -127,9 +133,7 @@ def steady_samples(sig: Signals) -> np.ndarray:
     is what the models miss most, and that miss depends on the motion (the loop's speed
     error, the back-EMF the drive's voltage works against), not on a torque of the
     stand. Where it changes little the samples hold the torque that drove the shaft."""
-    if _FILTERED_CURRENT not in sig.cache:
-        sig.cache[_FILTERED_CURRENT] = sig.filt(sig.current)
-    change = np.abs(np.gradient(sig.cache[_FILTERED_CURRENT]))
+    change = np.abs(np.gradient(_filtered_current(sig)))
     return (change <= np.median(change)).astype(float)
 
 
