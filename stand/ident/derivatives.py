@@ -24,6 +24,7 @@ inputs aligned to them:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -133,6 +134,7 @@ def interval_weights(half_width: int, dt_s: float) -> np.ndarray:
     return np.asarray(raw / (g_raw.sum() * dt_s))
 
 
+@lru_cache(maxsize=16)
 def acceleration_kernel(half_width: int, dt_s: float) -> np.ndarray:
     """What the sampled second-derivative kernel makes of the acceleration, at the knots.
 
@@ -150,11 +152,14 @@ def acceleration_kernel(half_width: int, dt_s: float) -> np.ndarray:
     -------
     ndarray, shape (2·half_width + 1,)
         ``K(jΔt)`` for ``j = −half_width … half_width``, 1/s (``K`` is zero at the ends of
-        its support).
+        its support). Read-only: one array per ``(half_width, dt_s)`` is kept (a run's
+        columns all go through the same kernel; at ``h`` = 1000 one evaluation is 20 ms).
     """
     _, _, g2 = kernel(half_width, dt_s)
     knots = np.arange(-half_width, half_width + 1)
-    return np.asarray([np.sum(g2 * dt_s * np.maximum(j - knots, 0) * dt_s) for j in knots])
+    out = np.asarray([np.sum(g2 * dt_s * np.maximum(j - knots, 0) * dt_s) for j in knots])
+    out.flags.writeable = False
+    return out
 
 
 def acceleration_interval_weights(half_width: int, dt_s: float) -> np.ndarray:
