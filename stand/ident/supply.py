@@ -52,7 +52,6 @@ class DriveSupply:
                 raise InputError(f"drive supply: {name} must be finite, got inf")
 
 
-
 def motor_supply(name_or_path: str | None) -> DriveSupply | None:
     """The supply and current limit of motor profile ``name_or_path``'s drive, and its
     motor's ``R``, ``L``, ``Kt`` (:func:`stand.profiles.load_motor`); None for None."""
