@@ -72,6 +72,9 @@ TIMING_COLUMN = "current_step"
 #: current over several periods): such a period holds a ramp between its end samples,
 #: not a step settled early in it, and its current's timing has a coefficient of its own.
 RAMP_COLUMN = "current_ramp"
+#: Half the current's change over the periods that settle no step (:data:`DRIFT_WEIGHT`),
+#: a part of the current's column where the timing column carries the settling.
+DRIFT_COLUMN = "current_drift"
 #: A change of the current counts as a ramp going on when it and the next change have
 #: the same sign and each exceeds this many standard deviations of a difference of two
 #: noisy samples (4: white noise alone passes each with probability 6e-5, both far less).
@@ -83,6 +86,12 @@ RAMP_SIGMAS = 4.0
 #: on its way at the next sample: a ramp. (A noise-free run has no noise floor, and
 #: every settling tail would otherwise count as a ramp.)
 RAMP_CARRIED_SHARE = float(np.exp(-1.0))
+#: A period whose current changes by no more than the ramp's noise floor
+#: (:data:`RAMP_SIGMAS`) settles no step: its current holds or drifts with the motion (a
+#: drive at its supply voltage follows ``(V − Kt·ω)/R``, linear in time across the
+#: period), and its mean over the period is the mean of its end samples, ``w = ½``,
+#: rather than the settled end value a step's timing gives.
+DRIFT_WEIGHT = 0.5
 #: The timing column carries a fast current loop's settling at the start of each period
 #: (:meth:`Design._settling`) rather than a change held over the whole period.
 SETTLING_AT_START = True
@@ -93,7 +102,8 @@ SETTLING_AT_START = True
 #: on the simulated drives) where the value at the period's start misses a share ``w``.
 RIPPLE_COLUMNS = ("rip_sin", "rip_cos")
 #: Columns that carry the measured current (and so need an instrument).
-CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, *RIPPLE_COLUMNS})
+CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, DRIFT_COLUMN,
+                             *RIPPLE_COLUMNS})
 
 
 def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
@@ -237,7 +247,12 @@ class Design:
         if name in (TIMING_COLUMN, RAMP_COLUMN):
             current = shifted(sig.current, spec.delay)
             step = interval_current(current, 1.0) - interval_current(current, 0.0)
-            step = step * self.ramp_mask(spec.delay, name == RAMP_COLUMN)
+            step = step * self.change_mask(spec.delay, self._change_kind(spec, name))
+            return lagged_mean(step, self.lag) if instrument else step
+        if name == DRIFT_COLUMN:
+            current = shifted(sig.current, spec.delay)
+            step = interval_current(current, 1.0) - interval_current(current, 0.0)
+            step = DRIFT_WEIGHT * step * self.change_mask(spec.delay, "drift")
             return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
@@ -295,22 +310,47 @@ class Design:
         next_start = np.concatenate([zero, at_start[:-1]])
         return np.asarray((1.0 - share) * at_start + share * next_start)
 
-    def ramp_mask(self, delay: int, ramp: bool) -> np.ndarray:
-        """1 on the periods whose current change goes on into the next period beyond the
-        noise (:data:`RAMP_SIGMAS`) and beyond a settling loop's tail
-        (:data:`RAMP_CARRIED_SHARE`) when ``ramp``, on the others when not."""
-        key = ("ramp mask", delay)
+    def change_mask(self, delay: int, kind: str) -> np.ndarray:
+        """1 on the periods of one ``kind`` of current change, 0 on the others.
+
+        ``ramp``: the change goes on into the next period beyond the noise
+        (:data:`RAMP_SIGMAS`) and beyond a settling loop's tail
+        (:data:`RAMP_CARRIED_SHARE`); ``settle``: not a ramp, and beyond the noise (a
+        step the current loop settles); ``drift``: neither (:data:`DRIFT_WEIGHT`);
+        ``steady``: settle or drift (every period that is no ramp). A run whose noise
+        floor is above all of its steps has no drift: the data cannot tell a step from a
+        drift, and every period that is no ramp settles with the timing column's ``w``.
+        """
+        key = ("change masks", delay)
         if key not in self.cache:
             current = shifted(self.sig.current, delay)
             step = interval_current(current, 1.0) - interval_current(current, 0.0)
             following = np.concatenate([step[1:], [0.0]])
             floor = RAMP_SIGMAS * np.sqrt(2.0) * noise_sigma(self.sig.current)
-            self.cache[key] = ((np.abs(step) > floor) & (np.abs(following) > floor)
-                               & (step * following > 0)
-                               & (np.abs(following) >= RAMP_CARRIED_SHARE * np.abs(step))
-                               ).astype(float)
-        mask = self.cache[key]
-        return np.asarray(mask if ramp else 1.0 - mask)
+            beyond = np.abs(step) > floor
+            ramp = (beyond & (np.abs(following) > floor) & (step * following > 0)
+                    & (np.abs(following) >= RAMP_CARRIED_SHARE * np.abs(step)))
+            settle = beyond & ~ramp
+            if not settle.any():  # no step beyond the noise: the timing column takes all
+                settle = ~ramp
+            self.cache[key] = np.stack([ramp, settle, ~(ramp | settle)]).astype(float)
+        ramp, settle, drift = self.cache[key]
+        return np.asarray({"ramp": ramp, "settle": settle, "drift": drift,
+                           "steady": settle + drift}[kind])
+
+    def ramp_mask(self, delay: int, ramp: bool) -> np.ndarray:
+        """:meth:`change_mask` of the ramps when ``ramp``, of every other period when not."""
+        return self.change_mask(delay, "ramp" if ramp else "steady")
+
+    @staticmethod
+    def _change_kind(spec: ModelSpec, name: str) -> str:
+        """The periods whose change column ``name`` carries: the ramps for the ramp's
+        column; for the timing column, the settled steps where it carries the loop's
+        settling (the periods that settle none hold ``w = ½``, :data:`DRIFT_WEIGHT`),
+        every period that is no ramp where it is a free timing of the held current."""
+        if name == RAMP_COLUMN:
+            return "ramp"
+        return "settle" if SETTLING_AT_START and spec.input_weight == 0.0 else "steady"
 
     def noise_weights(self, weight: float = 0.5) -> np.ndarray:
         """Weight of each current sample in the filtered held current of ``input_weight``
@@ -374,11 +414,13 @@ class Design:
             if name == "current":
                 sources[name] = [(own, ones)]
                 if settles:
-                    mask = self.ramp_mask(spec.delay, False)
+                    mask = self.change_mask(spec.delay, "settle")
                     sources[name].append((step - self._settling_weights(settling_share), mask))
+                    sources[name].append((DRIFT_WEIGHT * step,
+                                          self.change_mask(spec.delay, "drift")))
             elif name == TIMING_COLUMN and settles:
                 sources[name] = [(self._settling_weights(settling_share),
-                                  self.ramp_mask(spec.delay, False))]
+                                  self.change_mask(spec.delay, "settle"))]
             elif name in (TIMING_COLUMN, RAMP_COLUMN):
                 sources[name] = [(step, self.ramp_mask(spec.delay, name == RAMP_COLUMN))]
             elif name in RIPPLE_COLUMNS:
@@ -432,10 +474,12 @@ class Design:
             if self._settles(spec, names):
                 if name == TIMING_COLUMN:
                     return self._settling(spec, instrument, settling_share)
-                if name == "current":  # held at the period's end, less the settling
+                if name == "current":  # held at the period's end, less the settling; the
+                    # periods that settle no step at the mean of their end samples
                     return (self.column(spec, name, instrument)
                             + self.column(spec, TIMING_COLUMN, instrument)
-                            - self._settling(spec, instrument, settling_share))
+                            - self._settling(spec, instrument, settling_share)
+                            + self.column(spec, DRIFT_COLUMN, instrument))
                 if name in RIPPLE_COLUMNS:
                     return self.column(replace(spec, input_weight=1.0), name, instrument)
             return self.column(spec, name, instrument)
