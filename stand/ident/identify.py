@@ -294,7 +294,7 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     _, from_loop, design, fitter, chosen = min(fits, key=lambda fit: fit[0])
     spec, est = chosen.spec, chosen.estimate
     if estimator == "auto":
-        estimator, spec, est = _pick_estimator(design, spec, est, run.source)
+        estimator, spec, est = _pick_estimator(fitter, spec, est)
     spread = model_variance(fitter, chosen)
     est = est.with_variance("current", spread)
     refined = _closed_loop(run, loop, spec, est, sigma, supply, warnings) if loop is not None else None
@@ -400,8 +400,8 @@ def current_weight(spec: ModelSpec, est: Estimate) -> float:
     return spec.input_weight + est.value(TIMING_COLUMN) / est.value("current")
 
 
-def _pick_estimator(design: Design, spec: ModelSpec, bc: Estimate,
-                    source: str) -> tuple[str, ModelSpec, Estimate]:
+def _pick_estimator(fitter: Fitter, spec: ModelSpec,
+                    bc: Estimate) -> tuple[str, ModelSpec, Estimate]:
     """``bc`` or ``iv`` for ``spec``, whichever has the smaller error of Kt/J (with the
     spec it was fitted with: ``iv`` takes the current's timing ``bc`` found).
 
@@ -410,9 +410,14 @@ def _pick_estimator(design: Design, spec: ModelSpec, bc: Estimate,
     variance (:func:`~stand.ident.noise.noise_sigma_uncertainty`), added to its variance
     (and to its reported covariance). ``iv`` has no such term, but weak instruments (a
     current that decorrelates within the lag, as under a fast speed loop) widen it.
+    ``ls`` is the model ``bc`` was fitted with (``fitter``'s, with or without the
+    current's timing column), so that the shift is the compensation's alone.
     """
+    design, source = fitter.design, fitter.source
     k = bc.names.index("current")
-    ls = Fitter(design, "ls", source).fit(spec)
+    least = Fitter(design, "ls", source)
+    least.timing = fitter.timing
+    ls = least.fit(spec)
     shift = (bc.beta[k] - ls.beta[k]) * design.filtered_noise(spec.input_weight)[1]
     cov = bc.cov.copy()
     cov[k, k] += shift**2
