@@ -18,6 +18,12 @@ sampling hides between samples, :mod:`docs/results/ident.md`).
     python tests/bench/bench_ident_coverage.py --mode speed --no-target   # one mode, no target
     python tests/bench/bench_ident_coverage.py --mode speed --no-supply   # supply not told
     python tests/bench/bench_ident_coverage.py --supply-cost   # CPU s of one 20 s, 1 kHz run
+    python tests/bench/bench_ident_coverage.py --replicates 6 --cases 40 --seed 14 --mode current
+
+``--replicates R`` runs each stand R times (fresh excitation and noise, the same motor,
+drive and effects) and compares the spread of Kt/J over the runs with the standard error
+each run reports (a ratio below 1: the errors are wider than the noise needs) and the mean
+error with it (a bias every run of the stand shares, which no interval from one run sees).
 
 ``identify`` is told the drive's supply (48 V) and current limit, and the motor's R, L and
 Kt each off by a factor of up to 1.25 either way (a profile's values, which the
@@ -183,6 +189,56 @@ def run_case(index: int, seed: int, target: bool = True, supply: bool = True) ->
             "estimator": r.estimator, "warnings": r.warnings}
 
 
+def run_replicates(index: int, seed: int, target: bool = True, supply: bool = True,
+                   replicates: int = 6) -> dict[str, Any]:
+    """Stand ``index`` run ``replicates`` times (the first is :func:`run_case`'s run): the
+    spread of Kt/J over the runs and its mean error, in the runs' mean standard error."""
+    rng = np.random.default_rng([seed, index])
+    stand = draw_stand(rng)
+    names = EFFECT_SETS[index % len(EFFECT_SETS)]
+    effects = {name: draw_effect(name, rng, stand) for name in names}
+    truth = stand["motor"].Kt / stand["motor"].J
+    told = told_supply(stand, np.random.default_rng([seed, index, 2])) if supply else None
+    errors, ses, covered = [], [], []
+    for k in range(replicates):
+        run = simulate(stand, effects, seed * 100_003 + index + REPLICATE_STRIDE * k,
+                       target=target)
+        try:
+            r = identify_run(run, supply=told)
+        except StandError:
+            continue
+        errors.append(r.Kt_over_J / truth - 1.0)
+        ses.append(r.Kt_over_J_se / truth)
+        covered.append(r.Kt_over_J_ci95[0] <= truth <= r.Kt_over_J_ci95[1])
+    row: dict[str, Any] = {"index": index, "truth_effects": list(names),
+                           "mode": stand["mode"], "runs": len(errors)}
+    if len(errors) < 2:
+        return row
+    se = float(np.mean(ses))
+    return {**row, "mean_error_rel": float(np.mean(errors)), "mean_se_rel": se,
+            "spread_over_se": float(np.std(errors, ddof=1)) / se,
+            "bias_over_se": float(np.mean(errors)) / se,
+            "covered": float(np.mean(covered))}
+
+
+#: Seed step between the runs of one stand in ``--replicates``.
+REPLICATE_STRIDE = 7919
+
+
+def summarize_replicates(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Median spread and |bias| over the reported standard error, and the coverage."""
+    ok = [r for r in rows if "spread_over_se" in r]
+    if not ok:
+        return {"stands": len(rows), "answered": 0}
+    spread = np.array([r["spread_over_se"] for r in ok])
+    bias = np.array([abs(r["bias_over_se"]) for r in ok])
+    return {"stands": len(rows), "answered": len(ok), "runs": sum(r["runs"] for r in ok),
+            "spread_over_se_quartiles": np.percentile(spread, [25, 50, 75]).tolist(),
+            "abs_bias_over_se_quartiles": np.percentile(bias, [25, 50, 75]).tolist(),
+            "stands_biased_beyond_2_se": int(np.sum(bias > 2.0)),
+            "coverage": float(np.mean([r["covered"] for r in ok]))}
+
+
 def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Within-2 % share and coverage, overall, per effect and per mode."""
     ok = [r for r in rows if "error_rel" in r]
@@ -281,7 +337,7 @@ def supply_cost(duration_s: float = 20.0, dt: float = 1e-3) -> dict[str, Any]:
     return out
 
 
-def _pool_map(function: Any, jobs: list[tuple[int, int, bool, bool]],
+def _pool_map(function: Any, jobs: list[tuple[Any, ...]],
               workers: int) -> list[dict[str, Any]]:
     if workers <= 1:
         return [function(*job) for job in jobs]
@@ -308,6 +364,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--supply-cost", action="store_true",
                         help="CPU seconds of identify on a 20 s, 1 kHz run that saturates "
                              "a 6 V supply, without and with the supply told")
+    parser.add_argument("--replicates", type=int, default=0,
+                        help="run each stand this many times: spread and bias in its se")
     parser.add_argument("--timing", action="store_true",
                         help="noise-free Kt/J error: point samples against the held current")
     args = parser.parse_args(argv)
@@ -320,7 +378,8 @@ def main(argv: list[str] | None = None) -> int:
         print()
         return 0
     if args.kt:
-        jobs = [(k, args.seed, not args.no_target, not args.no_supply) for k in range(args.stands)
+        jobs: list[tuple[Any, ...]] = [
+            (k, args.seed, not args.no_target, not args.no_supply) for k in range(args.stands)
                 if args.mode is None or kt_mode(k, args.seed) == args.mode]
         rows = _pool_map(run_kt_case, jobs, args.workers)
         ok = [r for r in rows if "error_rel" in r]
@@ -333,6 +392,12 @@ def main(argv: list[str] | None = None) -> int:
             "per_mode": {m: float(np.mean([abs(r["error_rel"]) <= 0.01 for r in ok
                                            if r["mode"] == m] or [np.nan]))
                          for m in ("current", "speed")}}
+    elif args.replicates:
+        jobs = [(k, args.seed, not args.no_target, not args.no_supply, args.replicates)
+                for k in range(args.cases)
+                if args.mode is None or case_mode(k, args.seed) == args.mode]
+        rows = _pool_map(run_replicates, jobs, args.workers)
+        summary = summarize_replicates(rows)
     else:
         jobs = [(k, args.seed, not args.no_target, not args.no_supply) for k in range(args.cases)
                 if args.mode is None or case_mode(k, args.seed) == args.mode]
