@@ -244,15 +244,13 @@ class Design:
         sig = self.sig
         if name == "current":
             return self.current(spec, instrument)
-        if name in (TIMING_COLUMN, RAMP_COLUMN):
-            current = shifted(sig.current, spec.delay)
-            step = interval_current(current, 1.0) - interval_current(current, 0.0)
-            step = step * self.change_mask(spec.delay, self._change_kind(spec, name))
-            return lagged_mean(step, self.lag) if instrument else step
-        if name == DRIFT_COLUMN:
-            current = shifted(sig.current, spec.delay)
-            step = interval_current(current, 1.0) - interval_current(current, 0.0)
-            step = DRIFT_WEIGHT * step * self.change_mask(spec.delay, "drift")
+        if name in (TIMING_COLUMN, RAMP_COLUMN, DRIFT_COLUMN):
+            if name == DRIFT_COLUMN:
+                step = DRIFT_WEIGHT * self.current_change(spec.delay) * self.change_mask(
+                    spec.delay, "drift")
+            else:
+                step = self.current_change(spec.delay) * self.change_mask(
+                    spec.delay, self._change_kind(spec, name))
             return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
@@ -310,6 +308,12 @@ class Design:
         next_start = np.concatenate([zero, at_start[:-1]])
         return np.asarray((1.0 - share) * at_start + share * next_start)
 
+    def current_change(self, delay: int) -> np.ndarray:
+        """The current's change over the period after each sample, ``i[n + 1] − i[n]``
+        of the current read ``delay`` samples late."""
+        current = shifted(self.sig.current, delay)
+        return np.asarray(interval_current(current, 1.0) - interval_current(current, 0.0))
+
     def change_mask(self, delay: int, kind: str) -> np.ndarray:
         """1 on the periods of one ``kind`` of current change, 0 on the others.
 
@@ -323,8 +327,7 @@ class Design:
         """
         key = ("change masks", delay)
         if key not in self.cache:
-            current = shifted(self.sig.current, delay)
-            step = interval_current(current, 1.0) - interval_current(current, 0.0)
+            step = self.current_change(delay)
             following = np.concatenate([step[1:], [0.0]])
             floor = RAMP_SIGMAS * np.sqrt(2.0) * noise_sigma(self.sig.current)
             beyond = np.abs(step) > floor

@@ -166,17 +166,25 @@ def kt_mode(index: int, seed: int) -> str:
 NOT_RECONSTRUCTED = "the PI speed law explains"
 
 
-def run_case(index: int, seed: int, target: bool = True, supply: bool = True) -> dict[str, Any]:
-    """Draw, simulate and identify case ``index``; score Kt/J and its interval."""
+def draw_case(index: int, seed: int, supply: bool = True
+              ) -> tuple[dict[str, Any], tuple[str, ...], dict[str, dict[str, float]],
+                         DriveSupply | None]:
+    """Stand, effect set, effects and the supply told to ``identify`` of case ``index``."""
     rng = np.random.default_rng([seed, index])
     stand = draw_stand(rng)
     names = EFFECT_SETS[index % len(EFFECT_SETS)]
     effects = {name: draw_effect(name, rng, stand) for name in names}
+    told = told_supply(stand, np.random.default_rng([seed, index, 2])) if supply else None
+    return stand, names, effects, told
+
+
+def run_case(index: int, seed: int, target: bool = True, supply: bool = True) -> dict[str, Any]:
+    """Draw, simulate and identify case ``index``; score Kt/J and its interval."""
+    stand, names, effects, told = draw_case(index, seed, supply)
     run = simulate(stand, effects, seed * 100_003 + index, target=target)
     truth = stand["motor"].Kt / stand["motor"].J
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"], "loop_hz": stand["loop_hz"]}
-    told = told_supply(stand, np.random.default_rng([seed, index, 2])) if supply else None
     start = time.perf_counter()
     try:
         r = identify_run(run, supply=told)
@@ -189,16 +197,16 @@ def run_case(index: int, seed: int, target: bool = True, supply: bool = True) ->
             "estimator": r.estimator, "warnings": r.warnings}
 
 
+#: Seed step between the runs of one stand in ``--replicates``.
+REPLICATE_STRIDE = 7919
+
+
 def run_replicates(index: int, seed: int, target: bool = True, supply: bool = True,
                    replicates: int = 6) -> dict[str, Any]:
     """Stand ``index`` run ``replicates`` times (the first is :func:`run_case`'s run): the
     spread of Kt/J over the runs and its mean error, in the runs' mean standard error."""
-    rng = np.random.default_rng([seed, index])
-    stand = draw_stand(rng)
-    names = EFFECT_SETS[index % len(EFFECT_SETS)]
-    effects = {name: draw_effect(name, rng, stand) for name in names}
+    stand, names, effects, told = draw_case(index, seed, supply)
     truth = stand["motor"].Kt / stand["motor"].J
-    told = told_supply(stand, np.random.default_rng([seed, index, 2])) if supply else None
     errors, ses, covered = [], [], []
     for k in range(replicates):
         run = simulate(stand, effects, seed * 100_003 + index + REPLICATE_STRIDE * k,
@@ -219,10 +227,6 @@ def run_replicates(index: int, seed: int, target: bool = True, supply: bool = Tr
             "spread_over_se": float(np.std(errors, ddof=1)) / se,
             "bias_over_se": float(np.mean(errors)) / se,
             "covered": float(np.mean(covered))}
-
-
-#: Seed step between the runs of one stand in ``--replicates``.
-REPLICATE_STRIDE = 7919
 
 
 def summarize_replicates(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -380,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.kt:
         jobs: list[tuple[Any, ...]] = [
             (k, args.seed, not args.no_target, not args.no_supply) for k in range(args.stands)
-                if args.mode is None or kt_mode(k, args.seed) == args.mode]
+            if args.mode is None or kt_mode(k, args.seed) == args.mode]
         rows = _pool_map(run_kt_case, jobs, args.workers)
         ok = [r for r in rows if "error_rel" in r]
         err = np.array([abs(r["error_rel"]) for r in ok])
