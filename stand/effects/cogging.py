@@ -36,6 +36,7 @@ class Cogging(Effect):
     name: ClassVar[str] = "cogging"
     columns: ClassVar[tuple[str, ...]] = ("cog_sin", "cog_cos")
     spec_fields: ClassVar[tuple[str, ...]] = ("cogging_N",)
+    picked_by_simulation: ClassVar[bool] = True
     units: ClassVar[dict[str, str]] = {"Tcog_over_Kt_A": "A", "Tcog": "N·m",
                                        "N": "cycles/rev", "phi": "rad"}
 
@@ -57,8 +58,10 @@ class Cogging(Effect):
     @classmethod
     def search(cls, base: ModelSpec, train: Signals,
                simulated: Simulated | None = None) -> ModelSpec:
-        """The order of smallest equation error among those the run resolves."""
-        return search_order(base, train, lambda n: ModelSpec(cogging_N=n))
+        """The order of smallest equation error among those the run resolves, or among
+        the few smallest the one that simulates the run best where orders turn fast
+        within a sample (:func:`~stand.effects.periodic.search_order`)."""
+        return search_order(base, train, lambda n: ModelSpec(cogging_N=n), simulated)
 
     @classmethod
     def agree(cls, first: FittedModel, second: FittedModel) -> bool:

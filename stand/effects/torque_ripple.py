@@ -36,6 +36,7 @@ class TorqueRipple(Effect):
     name: ClassVar[str] = "torque_ripple"
     columns: ClassVar[tuple[str, ...]] = ("rip_sin", "rip_cos")
     spec_fields: ClassVar[tuple[str, ...]] = ("ripple_N",)
+    picked_by_simulation: ClassVar[bool] = True
     units: ClassVar[dict[str, str]] = {"eps": "1", "N": "cycles/rev", "phi": "rad"}
 
     eps: float
@@ -55,8 +56,10 @@ class TorqueRipple(Effect):
     @classmethod
     def search(cls, base: ModelSpec, train: Signals,
                simulated: Simulated | None = None) -> ModelSpec:
-        """The order of smallest equation error among those the run resolves."""
-        return search_order(base, train, lambda n: ModelSpec(ripple_N=n))
+        """The order of smallest equation error among those the run resolves, or among
+        the few smallest the one that simulates the run best where orders turn fast
+        within a sample (:func:`~stand.effects.periodic.search_order`)."""
+        return search_order(base, train, lambda n: ModelSpec(ripple_N=n), simulated)
 
     @classmethod
     def agree(cls, first: FittedModel, second: FittedModel) -> bool:

@@ -132,3 +132,28 @@ def test_backlash_comes_back_as_gap_and_load_inertia() -> None:
     np.testing.assert_allclose(params["gap"], planted["gap"], rtol=0.1)
     np.testing.assert_allclose(params["J_load"], planted["J_load"], rtol=0.3)
     assert params["restitution"] in (0.0, 0.5)
+
+
+def test_a_ripple_turning_fast_within_a_sample_is_named_with_its_order() -> None:
+    # A speed-loop stand sampled every 2.04 ms at up to 140 rad/s: a ripple of order 7
+    # turns 2 rad a sample there, and the equation error ranks order 6 first. Simulating
+    # TRAIN picks 7 among the orders of smallest equation error, and HOLDOUT confirms it
+    # (before: order 6, which simulated HOLDOUT worse than no ripple at all, and the
+    # verdict `unexplained`). On seeds 1-5 and 7 of this stand the order comes back on 3
+    # of 6 (before: none); on the others TRAIN's simulation prefers order 6 too.
+    motor = MotorParams(R=0.597, L=6.32e-4, Kt=0.0688, J=5.21e-5, D=3.34e-4)
+    drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=49.0,
+                        speed_kp=0.0991, speed_ki=2.595)
+    sensors = SensorParams(encoder_lines=5000, current_noise_A=0.0192)
+    ripple = {"torque_ripple": {"eps": 0.17, "N": 7, "phi": 0.16}}
+    dt = 2.04e-3
+    runs = []
+    for k, (hold, amplitude) in enumerate(((25, 123.0), (32, 105.0))):
+        plant = MotorPlant(motor, drive, sensors, Effects.from_mapping(ripple), seed=1 + k)
+        command = excitation("prbs", int(10.0 / dt), dt, 0.0, amplitude, hold, seed=1 + k)
+        run = simulate_motor(plant, "speed", command, dt)
+        runs.append(Run({c: run[c] for c in ("time_s", "current_A", "position_rad",
+                                             "speed_target_rad_s")}, f"run{k}"))
+    result = diagnose(runs[0], runs[1])
+    assert result.verdict == "torque_ripple"
+    assert result.verdict_params["torque_ripple"]["N"] == 7
