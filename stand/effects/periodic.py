@@ -73,8 +73,9 @@ def search_order(base: ModelSpec, train: Signals, of_order: Callable[[int], Mode
                  simulated: Simulated | None = None) -> ModelSpec:
     """``base`` plus the term ``of_order(N)`` of the order of smallest equation error on
     ``train`` among those it resolves (:func:`orders`); :data:`NO_FIT` if none. Where
-    those orders turn faster than :data:`FAST_PHASE_STEP` a sample at the run's top
-    speed, the best of them shrinks the equation error by at least
+    the fastest of the :data:`SHORTLIST` orders of smallest equation error turns more
+    than :data:`FAST_PHASE_STEP` a sample at the run's top speed, the first of them
+    shrinks the equation error by at least
     :data:`~stand.diagnosis.significance.MIN_SHRINK`, and ``simulated`` is given (a
     spec's gap simulating ``train``), the one that simulates ``train`` best among the
     :data:`SHORTLIST` of smallest equation error, by :data:`SIMULATION_MARGIN` at least
