@@ -90,15 +90,15 @@ def search_order(base: ModelSpec, train: Signals, of_order: Callable[[int], Mode
     ranked = [int(k) for k in np.argsort(rms) if np.isfinite(rms[k])][:SHORTLIST]
     if not ranked:
         return NO_FIT
-    fastest = max(found[k] for k in ranked) * train.top_speed * train.dt_s
+    first = specs[ranked[0]]
+    if max(found[k] for k in ranked) * train.top_speed * train.dt_s <= FAST_PHASE_STEP:
+        return first
     # an order that barely moves the equation error is no effect the verdict could
     # name, however it ranks: not worth a simulation
     before = float(fit_residual_batch([base], train)[0][0])
-    shrink = 1.0 - rms[ranked[0]] / before if before > 0 else 0.0
-    first = specs[ranked[0]]
-    if fastest <= FAST_PHASE_STEP or not shrink >= MIN_SHRINK:
+    if not (before > 0 and 1.0 - rms[ranked[0]] / before >= MIN_SHRINK):
         return first
-    picked = best([specs[k] for k in ranked], train, simulated=simulated)
+    picked = min((specs[k] for k in ranked), key=simulated)   # ranked: finite fits only
     # a near tie keeps the equation error's order (a flip there broke the agreement
     # of TRAIN's and HOLDOUT's searches for a ripple both had right)
     return picked if simulated(picked) < (1 - SIMULATION_MARGIN) * simulated(first) else first

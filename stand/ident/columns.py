@@ -245,12 +245,9 @@ class Design:
         if name == "current":
             return self.current(spec, instrument)
         if name in (TIMING_COLUMN, RAMP_COLUMN, DRIFT_COLUMN):
-            if name == DRIFT_COLUMN:
-                step = DRIFT_WEIGHT * self.current_change(spec.delay) * self.change_mask(
-                    spec.delay, "drift")
-            else:
-                step = self.current_change(spec.delay) * self.change_mask(
-                    spec.delay, self._change_kind(spec, name))
+            weight = DRIFT_WEIGHT if name == DRIFT_COLUMN else 1.0
+            step = weight * self.current_change(spec.delay) * self.change_mask(
+                spec.delay, self._change_kind(spec, name))
             return lagged_mean(step, self.lag) if instrument else step
         if name == "one":
             return np.ones(len(sig))
@@ -348,11 +345,14 @@ class Design:
     @staticmethod
     def _change_kind(spec: ModelSpec, name: str) -> str:
         """The periods whose change column ``name`` carries: the ramps for the ramp's
-        column; for the timing column, the settled steps where it carries the loop's
-        settling (the periods that settle none hold ``w = ½``, :data:`DRIFT_WEIGHT`),
-        every period that is no ramp where it is a free timing of the held current."""
+        column; the drifts (periods that settle no step) for the drift's; for the timing
+        column, the settled steps where it carries the loop's settling (the drifts then
+        hold ``w = ½``, :data:`DRIFT_WEIGHT`), every period that is no ramp where it is a
+        free timing of the held current."""
         if name == RAMP_COLUMN:
             return "ramp"
+        if name == DRIFT_COLUMN:
+            return "drift"
         return "settle" if SETTLING_AT_START and spec.input_weight == 0.0 else "steady"
 
     def noise_weights(self, weight: float = 0.5) -> np.ndarray:
