@@ -294,12 +294,14 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
             f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
-    bench = Bench(tr, ho, horizon_s)
-    spec = _nominal_spec(bench.on_train, spring)
     law_train, law_holdout = loop_inputs(train, holdout, tr, ho)
+    # the sampled current, with the speed target's changes where both runs hold it
+    bench = Bench(law_train.sampled, law_holdout.sampled, horizon_s)
+    spec = _nominal_spec(bench.on_train, spring)
     notes = [x.note for x in (law_train, law_holdout) if x.note and not x.from_law]
+    notes = notes[:1] + _kick_note(spec)
     if not law_train.from_law:
-        return bench, spec, ho, notes[:1]
+        return bench, spec, ho, notes
     law_bench = Bench(law_train.signals, law_holdout.signals, horizon_s)
     law_spec = ModelSpec(input_weight=PERIOD_MEAN_WEIGHT, spring=spring)
     law_gap = law_bench.on_train.score(law_spec).gap
@@ -312,7 +314,18 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
         f"the PI speed law holds at the samples ({law_train.note}), but its current "
         f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %: the "
         "sampled current drives the models (the loop may saturate its voltage between "
-        "samples)"]
+        "samples)", *_kick_note(spec)]
+
+
+def _kick_note(spec: ModelSpec) -> list[str]:
+    """What the models' input carries of a speed loop's kicks (:mod:`.kicks`)."""
+    if not spec.kicks:
+        return []
+    return ["the speed loop's kicks of the current between samples are in every model's "
+            "input: the current over each period is the samples' plus terms in the speed "
+            "target's change at the period's start (in proportion, slewed as the supply "
+            "limits it, and against the back-EMF), fitted with each model; they simulate "
+            "TRAIN better than the samples alone"]
 
 
 def _phase_note(share: float) -> list[str]:

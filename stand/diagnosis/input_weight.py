@@ -25,6 +25,7 @@ import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+from stand.diagnosis import kicks
 from stand.diagnosis.model import ModelSpec
 from stand.errors import NotExcitedError
 
@@ -55,31 +56,38 @@ def pick(on_train: Bench, spec: ModelSpec) -> ModelSpec:
     """
     if spec.input_weight == PERIOD_MEAN_WEIGHT:
         return spec  # the speed loop's current, already each period's mean: nothing to pick
-    gaps: dict[float, float] = {}
+    sig = on_train.train
+    gaps: dict[tuple[float, bool], float] = {}
     error: NotExcitedError | None = None
 
-    def gap(w: float) -> None:
+    def weighted(w: float, kicked: bool) -> ModelSpec:
+        return replace(spec, input_weight=w, kicks=kicked)
+
+    def gap(w: float, kicked: bool) -> None:
         nonlocal error
-        if w in gaps or not INPUT_WEIGHTS[0] <= w <= INPUT_WEIGHTS[-1]:
+        if (w, kicked) in gaps or not INPUT_WEIGHTS[0] <= w <= INPUT_WEIGHTS[-1]:
             return
         try:
-            gaps[w] = on_train.score(replace(spec, input_weight=w)).gap
+            gaps[w, kicked] = on_train.score(weighted(w, kicked)).gap
         except NotExcitedError as exc:
-            gaps[w], error = math.inf, exc
+            gaps[w, kicked], error = math.inf, exc
 
+    choices = ((False, True) if sig.target_change is not None
+               and kicks.resolvable(sig.target_change) else (False,))
     for w in INPUT_WEIGHTS:
-        gap(w)
+        for kicked in choices:
+            gap(w, kicked)
     best = min(gaps, key=gaps.__getitem__)
     if not math.isfinite(gaps[best]):
         assert error is not None
         raise error
     step = (INPUT_WEIGHTS[1] - INPUT_WEIGHTS[0]) / 2
     for _ in range(WEIGHT_REFINEMENTS):
-        gap(best - step)
-        gap(best + step)
+        gap(best[0] - step, best[1])
+        gap(best[0] + step, best[1])
         best = min(gaps, key=gaps.__getitem__)
         step /= 2
-    return replace(spec, input_weight=best)
+    return weighted(*best)
 
 
 __all__ = ["INPUT_WEIGHTS", "WEIGHT_REFINEMENTS", "pick"]

@@ -60,10 +60,16 @@ class LoopInput:
 
 def loop_input(run: Run, sig: Signals) -> LoopInput:
     """``sig`` (prepared from ``run``) driven by the speed loop's current where ``run``
-    holds its speed target and the PI law holds; else ``sig`` unchanged."""
+    holds its speed target and the PI law holds; else the sampled current, with the
+    target's changes (``target_change``, whose kicks the models may carry:
+    :mod:`.kicks`) where the run holds its target, ``sig`` unchanged where not."""
     loop = speed_loop(run)
     if loop is None:
         return LoopInput(sig, sig, False)
+    # the sampled current with the target's changes, whose kicks the input
+    # reconstruction may carry (:mod:`.kicks`)
+    target = np.asarray(run[TARGET_COLUMN], dtype=float)
+    sig = replace(sig, target_change=np.diff(target, prepend=target[0]), cache={})
     if not loop.holds:
         return LoopInput(sig, sig, False,
                          f"{run.source}: the speed target is recorded, but {loop.message}; "
@@ -93,6 +99,11 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
     (a model identified on one input and simulated on the other would carry their
     difference as a gap); the notes say which and why."""
     first, second = loop_input(train, tr), loop_input(holdout, ho)
+    if (first.sampled.target_change is None) != (second.sampled.target_change is None):
+        # a target in one run only: neither the law's current nor the kicks on either
+        return (LoopInput(tr, tr, False, "the speed target is recorded in one run only: "
+                          "both are driven by the sampled current"),
+                LoopInput(ho, ho, False))
     if first.from_law == second.from_law:
         return first, second
     refused = first.note if not first.from_law else second.note

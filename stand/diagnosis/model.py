@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stand.diagnosis import kicks
 from stand.diagnosis.backlash_load import load_state
 from stand.diagnosis.dry_friction import period_mean
 from stand.diagnosis.signals import Signals
@@ -33,6 +34,8 @@ EDGE_SAMPLES = 50
 MAX_LOAD_RATIO = 1000.0
 #: The share ``J_l/(J + J_l)`` of such a load.
 MAX_LOAD_SHARE = MAX_LOAD_RATIO / (1.0 + MAX_LOAD_RATIO)
+#: Input columns of a speed loop's kicks (:mod:`.kicks`, :func:`kick_basis`).
+KICK_COLUMNS = tuple(f"kick{j}" for j in range(kicks.COLUMNS))
 #: Velocity resolution of a run, in encoder counts per sample period (of the filtered
 #: velocity, which averages over several samples).
 VELOCITY_RESOLUTION_COUNTS = 0.4
@@ -88,6 +91,10 @@ class ModelSpec:
     backlash_restitution: float = 0.0
     input_weight: float = 0.5
     spring: bool = False
+    #: Whether the speed loop's kicks of the current between samples are in the input
+    #: (:mod:`.kicks`: its columns ``kick0``, ``kick1``, ... fitted with the others).
+    #: Part of the input reconstruction with ``input_weight``, picked with it on TRAIN.
+    kicks: bool = False
 
     def names(self) -> list[str]:
         """Names of the input columns ``u`` (``current`` first)."""
@@ -104,6 +111,8 @@ class ModelSpec:
             out += ["rip_sin", "rip_cos"]
         if self.backlash_gap is not None:
             out.append("load_accel")
+        if self.kicks:
+            out += list(KICK_COLUMNS)
         return out
 
     def merged(self, other: ModelSpec) -> ModelSpec:
@@ -119,6 +128,7 @@ class ModelSpec:
             backlash_restitution=(other.backlash_restitution if other.backlash_gap is not None
                                   else self.backlash_restitution),
             input_weight=self.input_weight, spring=self.spring,
+            kicks=self.kicks,
         )
 
 
@@ -183,6 +193,28 @@ def at_samples(per_interval: np.ndarray) -> np.ndarray:
     return out
 
 
+def period_current(model: FittedModel, sig: Signals) -> np.ndarray:
+    """The current over the period after each sample that drives ``model`` on ``sig``,
+    A: the samples' reconstruction (``delay``, ``input_weight``), and where the model
+    has them, the speed loop's kicks between samples (:mod:`.kicks`) in current units
+    (their fitted torque over the current's)."""
+    spec = model.spec
+    current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+    if spec.kicks:
+        gains = np.array([model.coef[name] for name in KICK_COLUMNS])
+        current = current + kick_basis(sig) @ gains / model.coef["current"]
+    return current
+
+
+def kick_basis(sig: Signals) -> np.ndarray:
+    """:func:`stand.diagnosis.kicks.basis` of ``sig``'s target changes (cached on it)."""
+    if sig.target_change is None:
+        raise InputError(f"{sig.source}: no speed target, so no kicks of a speed loop")
+    if ("kicks",) not in sig.cache:
+        sig.cache["kicks",] = kicks.basis(sig.target_change, sig.omega_meas)
+    return sig.cache["kicks",]
+
+
 def sample_current(current: np.ndarray, weight: float) -> np.ndarray:
     """Current at each sample instant consistent with :func:`interval_current`."""
     return at_samples(interval_current(current, weight))
@@ -224,6 +256,8 @@ def periodic_column(order: int, sig: Signals, sine: bool) -> np.ndarray:
 
 def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
     """What input column ``name`` of ``spec`` depends on (the key of the filter cache)."""
+    if name in KICK_COLUMNS:
+        return (name,)
     current = (spec.delay, spec.input_weight)
     return {
         "current": ("current", *current), "one": ("one",), "sign": ("sign",),
@@ -239,6 +273,8 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
     theta = sig.theta_f
     if name == "current":
         return sample_current(shifted(sig.current, spec.delay), spec.input_weight)
+    if name in KICK_COLUMNS:
+        return at_samples(kick_basis(sig)[:, KICK_COLUMNS.index(name)])
     if name == "one":
         return np.ones(len(theta))
     if name == "sign":
@@ -483,6 +519,7 @@ def nominal() -> ModelSpec:
     return ModelSpec()
 
 
-__all__ = ["FittedModel", "ModelSpec", "equation_residual", "fit", "fit_residual_batch",
-           "interval_current", "nominal", "periodic_column", "periodic_mean",
+__all__ = ["KICK_COLUMNS", "FittedModel", "ModelSpec", "equation_residual", "fit",
+           "fit_residual_batch", "interval_current", "kick_basis", "nominal", "period_current",
+           "periodic_column", "periodic_mean",
            "regressors", "shifted", "velocity_resolution", "velocity_sign"]

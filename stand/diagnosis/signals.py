@@ -75,6 +75,11 @@ class Signals:
     #: proportional and integral parts over each period (samples × 2, A), whose gains'
     #: errors the shape tests take as nuisance; None otherwise.
     loop_parts: np.ndarray | None = None
+    #: Under a speed loop whose run holds its target (``speed_target_rad_s``): the
+    #: target's change at the start of each period, ``r[n] − r[n − 1]`` (rad/s), whose
+    #: kicks of the current between samples the input reconstruction may carry
+    #: (:mod:`.kicks`); None otherwise.
+    target_change: np.ndarray | None = None
     cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False,
                                                         compare=False)
 

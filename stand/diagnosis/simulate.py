@@ -30,9 +30,8 @@ from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
     FittedModel,
-    interval_current,
+    period_current,
     periodic_mean,
-    shifted,
     velocity_resolution,
 )
 from stand.diagnosis.signals import Signals
@@ -85,7 +84,7 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     """
     spec = model.spec
     dt = sig.dt_s
-    current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+    current = period_current(model, sig)
     first = seg.starts - 1
     drive = current[first[:, None] + np.arange(seg.horizon + 1)[None, :]]
     step = _Stepper(model, sig)

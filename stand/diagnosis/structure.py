@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stand.diagnosis import kicks
+from stand.diagnosis.model import kick_basis
 from stand.diagnosis.signals import Signals
 from stand.diagnosis.significance import FAMILY_ALPHA, PairedTest, paired_improvement
 from stand.errors import InputError
@@ -121,6 +123,12 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
     if sig.loop_parts is not None and "current" in names:
         # the speed law's current: what its gains' errors leave are its parts
         out = np.column_stack([out, sig.loop_parts / scales.current])
+    if (sig.loop_parts is None and "current" in names and sig.target_change is not None
+            and kicks.resolvable(sig.target_change)):
+        # the sampled current under a speed loop: what it misses of the kicks, in the
+        # target's changes alone (with the speed they would take part of a speed shape)
+        target = kick_basis(sig)[:, :kicks.TARGET_COLUMNS]
+        out = np.column_stack([out, sig.filt(target)])
     return out
 
 
