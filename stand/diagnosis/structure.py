@@ -85,12 +85,18 @@ class _Scales:
 
     omega: float
     current: float
+    #: The sampled current drives the models under a speed loop whose target's changes
+    #: TRAIN resolves (:func:`stand.diagnosis.kicks.resolvable`): what it misses of the
+    #: kicks is nuisance on both runs alike (:func:`columns`).
+    kicked: bool = False
 
 
 def _scales(sig: Signals) -> _Scales:
     omega = float(np.sqrt(np.mean(sig.omega_f**2))) or 1.0
     current = float(np.sqrt(np.mean(sig.current**2))) or 1.0
-    return _Scales(omega, current)
+    kicked = (sig.loop_parts is None and sig.target_change is not None
+              and kicks.resolvable(sig.target_change))
+    return _Scales(omega, current, kicked)
 
 
 #: Key of the low-passed measured current in a run's cache (:attr:`Signals.cache`).
@@ -123,8 +129,7 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
     if sig.loop_parts is not None and "current" in names:
         # the speed law's current: what its gains' errors leave are its parts
         out = np.column_stack([out, sig.loop_parts / scales.current])
-    if (sig.loop_parts is None and "current" in names and sig.target_change is not None
-            and kicks.resolvable(sig.target_change)):
+    if scales.kicked and "current" in names:
         # the sampled current under a speed loop: what it misses of the kicks, in the
         # target's changes alone (with the speed they would take part of a speed shape)
         target = kick_basis(sig)[:, :kicks.TARGET_COLUMNS]
