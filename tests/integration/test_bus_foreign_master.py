@@ -23,9 +23,12 @@ from stand.profiles import load_motor
 
 MOTOR = "crouzet_82800502"
 NODE = 1
-#: SYNC and RPDO period of the foreign master, s (2 ms: canopen's producers are Python
-#: threads on the virtual bus; the drive's physics step is set to it through 0x1006).
-CYCLE_S = 0.002
+#: SYNC and RPDO period of the foreign master, s (canopen's producers are Python threads
+#: on the virtual bus; the drive's physics step is set to it through 0x1006). 5 ms: at
+#: 2 ms the foreign master and the drive, one process under User-Mode Linux, fell behind
+#: the cycle, and an SDO answer took 0.4-0.7 s against the client's 0.5 s (fresh
+#: machine, canopen 2.4.1, python-can 4.6.1; the mode switch was then silently dropped).
+CYCLE_S = 0.005
 BOOT_TIMEOUT_S = 2.0
 #: Time the speed loop (tens of Hz) and the current loop get to settle, s.
 SETTLE_S = 0.6
