@@ -98,12 +98,12 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
     """:func:`loop_input` of TRAIN and HOLDOUT, the law's current on both or on neither
     (a model identified on one input and simulated on the other would carry their
     difference as a gap); the notes say which and why."""
-    first, second = loop_input(train, tr), loop_input(holdout, ho)
-    if (first.sampled.target_change is None) != (second.sampled.target_change is None):
+    if (TARGET_COLUMN in train) != (TARGET_COLUMN in holdout):
         # a target in one run only: neither the law's current nor the kicks on either
         return (LoopInput(tr, tr, False, "the speed target is recorded in one run only: "
                           "both are driven by the sampled current"),
                 LoopInput(ho, ho, False))
+    first, second = loop_input(train, tr), loop_input(holdout, ho)
     if first.from_law == second.from_law:
         return first, second
     refused = first.note if not first.from_law else second.note
