@@ -84,7 +84,9 @@ def loop_input(run: Run, sig: Signals) -> LoopInput:
     parts = np.column_stack([_late(loop.kp * error, loop.delay),
                              _late(loop.ki * lag, loop.delay)])
     note = (f"{run.source}: kp {loop.kp:.3g} A·s/rad, ki {loop.ki:.3g} A/rad, the law "
-            f"explaining the sampled current to {loop.residual_ratio:.2g} times its noise")
+            f"explaining the sampled current to {loop.residual_ratio:.2g} times its noise"
+            + (f", its integrator fitted anew after each of {loop.resets} stretches at the "
+               "current limit (the drive's anti-windup)" if loop.resets else ""))
     return LoopInput(replace(sig, current=current, loop_parts=parts, cache={}), sig, True, note)
 
 

@@ -265,7 +265,32 @@ def _seed_model(run: Run, method: str, no_load_current_A: float, half_width: int
 def _extended(run: Run, no_load_current_A: float, half_width: int | None,
               wanted: list[str] | None, estimator: str, warnings: list[str],
               supply: DriveSupply | None = None) -> IdentifyResult:
-    """The model with effects (or seed 000's, by iv), fitted on the kernel-filtered run."""
+    """The model with effects (or seed 000's, by iv), fitted on the kernel-filtered run.
+
+    A speed loop whose law holds only with its integrator fitted anew after each stretch
+    at the current limit (``resets``) is first fitted as a refused law where the drive's
+    supply is known: the simulation with the supply (which clips the command at the
+    limit) is the better model where it explains the run, and the reset law's current
+    where it does not."""
+    loop = speed_loop(run)
+    if loop is not None and loop.resets and supply is not None:
+        trial: list[str] = []
+        refused = replace(loop, period_current=np.empty(0), resets=0)
+        result, simulated = _fitted(run, refused, no_load_current_A, half_width, wanted,
+                                    estimator, trial, supply)
+        if simulated:
+            warnings += trial
+            return result
+    return _fitted(run, loop, no_load_current_A, half_width, wanted, estimator, warnings,
+                   supply)[0]
+
+
+def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
+            half_width: int | None, wanted: list[str] | None, estimator: str,
+            warnings: list[str], supply: DriveSupply | None
+            ) -> tuple[IdentifyResult, bool]:
+    """:func:`_extended` with the speed loop ``loop`` (None: no target); also whether the
+    output-error refinement of the loop holds."""
     sig = prepare(run)
     if no_load_current_A:
         sig = replace(sig, current=sig.current - no_load_current_A, cache={})
@@ -275,7 +300,6 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     # the measured current, and under a speed loop whose law holds, the current over
     # each period from that law (its own timing): the smaller held-out error decides
     currents: list[tuple[np.ndarray, float | None]] = [(sig.current, None)]
-    loop = speed_loop(run)
     if loop is not None and loop.holds:
         currents.append((loop.period_current - no_load_current_A, 0.0))
     fits = []
@@ -327,8 +351,8 @@ def _extended(run: Run, no_load_current_A: float, half_width: int | None,
     params = effect_params(spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes)
     timing = spec.delay + current_weight(spec, est)
-    return _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
-                   warnings, estimator, timing)
+    return (_result(run, est, "default", no_load_current_A, h, chosen.effects, params,
+                    warnings, estimator, timing), refined is not None and refined.holds)
 
 
 def missed_kick_variance(loop: SpeedLoop, est: Estimate, dt: float) -> float:
@@ -356,7 +380,12 @@ def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
     started from ``est``, where its loop law holds or the drive's supply is known; else
     None (a law refused for a reason the simulation does not model leaves it no start
     it can be trusted to reach the loop from). Where the law holds on all but some samples
-    and the supply is not known, a warning says the supply could not be modelled."""
+    and the supply is not known, a warning says the supply could not be modelled. None
+    too where the law holds only with its integrator fitted anew after each stretch at
+    the current limit (``loop.resets``): the simulation's integrator runs on through the
+    limit (:func:`_extended` tries the simulation with the supply first)."""
+    if loop.resets:
+        return None
     theta = run["position_rad"]
     saturated = not loop.holds
     if saturated:

@@ -23,6 +23,11 @@ run this is indistinguishable from inertia. When the run holds the target
   noise, and then nothing is reconstructed (a warning says why). Samples at the largest
   current are left out of the fit; where the law goes beyond that current there, it is
   the drive's current limit.
+- **Anti-windup.** At its current limit a drive keeps its integrator from winding up,
+  each drive its own way, and after each stretch at the limit the integrator holds a
+  state the one constant ``c`` misses. Where the law with one ``c`` is refused and the
+  current holds a limit, ``c`` is fitted anew after each stretch (:func:`_with_resets`),
+  at the delay the kicks show (:func:`kick_delay`).
 - **Current over each period.** ``ī_n = kp·(r_n − ω̄_n) + c + ki·(R_n − θ_n + θ_0) +
   ki·Δt/2·(r_n − ω̄_n)`` with ``ω̄_n = (θ_{n+1} − θ_n)/Δt``, the period's exact mean speed.
   It needs no instantaneous speed and carries no current-sensor noise. Within a period
@@ -63,6 +68,9 @@ MAX_RESIDUAL_RATIO = 1.5
 #: ``MIN_LIMIT_SAMPLES`` of them.
 LIMIT_SIGMAS = 4.0
 MIN_LIMIT_SAMPLES = 3
+#: Median length, in samples, of the stretches at a level for the current to hold it
+#: (a current limit, :func:`_with_resets`).
+HELD_SAMPLES = 2
 #: Points per period on which a clipped current is averaged.
 SUBSTEPS = 64
 #: Fewest rows for the gains' fit.
@@ -99,6 +107,9 @@ class SpeedLoop:
     limit_A : float
         The drive's current limit where the law reaches it (the period current is
         clipped there), A; infinite where it does not.
+    resets : int
+        Stretches at the current limit after which the integrator's state was fitted
+        anew (the drive's anti-windup, :func:`_with_resets`); 0 for one constant.
     """
 
     kp: float
@@ -110,6 +121,7 @@ class SpeedLoop:
     period_current: np.ndarray
     message: str = ""
     limit_A: float = np.inf
+    resets: int = 0
 
     @property
     def saturates(self) -> bool:
@@ -194,62 +206,18 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         the start of a simulation that models that (:mod:`stand.ident.closed_loop`).
     """
     n = len(theta)
-    omega, alpha, spread = kink_free_derivatives(theta, target, dt)
-    angle_sd = quant_rad / np.sqrt(12.0)
-    error_int = tracking_errors(theta, target, dt)[1]
-    previous = np.concatenate([target[:1], target[:-1]])
     sigma = noise_sigma(current)
+    if not sigma > 0:
+        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
+                         "a noise-free current: the speed loop's gains cannot be fitted")
+    rows = _Rows(theta, current, target, dt, quant_rad, sigma)
     # samples at the largest |current| may sit at the drive's current limit: fitted
     # without them, and the limit is taken as reached where the law exceeds it there
     limit = float(np.max(np.abs(current)))
     at_limit = np.abs(current) >= limit - LIMIT_SIGMAS * sigma
-    keep = np.isfinite(omega)
-    keep[0] = False   # read before the first target: the one before it is unknown
-    keep[n - MAX_DELAY:] = False
-    X = np.column_stack([previous - omega, error_int, np.ones(n), alpha])
-    if not sigma > 0:
-        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
-                         "a noise-free current: the speed loop's gains cannot be fitted")
-
-    def weighted(rows: np.ndarray, y: np.ndarray, columns: int
-                 ) -> tuple[np.ndarray, np.ndarray, float]:
-        """Weighted least squares (weights from the rows' noise at the plain fit's kp)."""
-        beta, *_ = np.linalg.lstsq(X[rows, :columns], y, rcond=None)
-        sd = np.sqrt(sigma**2 + (beta[0] * angle_sd * spread[rows]) ** 2)
-        A, b = X[rows, :columns] / sd[:, None], y / sd
-        beta, *_ = np.linalg.lstsq(A, b, rcond=None)
-        return beta, A, float(np.sum((b - A @ beta) ** 2)) / (len(rows) - columns)
-
-    def trimmed(rows: np.ndarray, delay: int) -> np.ndarray:
-        """``rows`` less those the law misses by more than ``TRIM_SIGMAS``, repeatedly."""
-        for _ in range(TRIM_PASSES):
-            beta = weighted(rows, current[rows + delay], 3)[0]
-            sd = np.sqrt(sigma**2 + (beta[0] * angle_sd * spread[rows]) ** 2)
-            inside = np.abs(current[rows + delay] - X[rows, :3] @ beta) <= TRIM_SIGMAS * sd
-            if inside.all() or inside.sum() < MIN_ROWS:
-                break
-            rows = rows[inside]
-        return rows
-
-    best: tuple[float, int, np.ndarray] | None = None
-    for delay in range(MAX_DELAY + 1):
-        rows = np.flatnonzero(keep[:n - delay] & ~at_limit[delay:])
-        if len(rows) < MIN_ROWS:
-            continue
-        if trim:
-            rows = trimmed(rows, delay)
-        mean_square = weighted(rows, current[rows + delay], 4)[2]
-        # a longer delay must fit better beyond the sampling error of a mean square
-        # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed, it
-        # must also explain as many samples (a drive whose supply slows the current looks
-        # delayed here: the simulation that models the supply tests the delay against none,
-        # :func:`~stand.ident.closed_loop.fit_closed_loop`)
-        if best is None or (
-                mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
-                and (not trim or len(rows) >= len(best[2]))):
-            best = (mean_square, delay, rows)
-    if best is None:
-        smooth = int(np.count_nonzero(keep))
+    law = rows.fit(at_limit, np.zeros(n, dtype=int), trim)
+    if law is None:
+        smooth = int(np.count_nonzero(rows.keep))
         reason = (f"only {smooth} of {n} samples have a speed free of a target change "
                   "around them (a target that changes at almost every sample, such as a "
                   "sine, leaves no window without a kink; hold the target over a few "
@@ -257,62 +225,283 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
                   "too few samples away from the current limit")
         return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
                          f"{reason}: the speed loop's gains cannot be fitted")
-    _, delay, rows = best
-    y = current[rows + delay]
-    plain, A, mean_square = weighted(rows, y, 3)
-    lagged, _, lag_square = weighted(rows, y, 4)
-    ratio = float(np.sqrt(lag_square))
-    kp, ki, c = (float(v) for v in plain)
-    limited = np.flatnonzero(keep[:n - delay] & at_limit[delay:])
-    beyond = np.abs(X[limited] @ lagged) > limit + LIMIT_SIGMAS * sigma
-    limit_A = limit if int(np.sum(beyond)) >= MIN_LIMIT_SAMPLES else np.inf
-    if not (kp > 0 and ratio <= MAX_RESIDUAL_RATIO):
-        return SpeedLoop(kp, ki, c, delay, ratio, np.inf, np.empty(0),
-                         limit_A=limit_A, message=
-                         f"the PI speed law explains the current only to {ratio:.2g} times its "
-                         f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
-                         "saturates its voltage or follows another law, so the current between "
-                         "samples is not reconstructed and Kt/J may be high by up to "
-                         "π·f_loop·Δt")
-    cov = np.linalg.inv(A.T @ A) * mean_square
-    # with the drive's delay τ (current loop, computation): i ≈ i_cmd − τ·i_cmd'
-    # = … + τ·kp·α − τ·ki·(r − ω); on exponential transients τ and kp trade off, so the
-    # two fits' difference enters the uncertainty
-    tau = float(lagged[3] / lagged[0]) if lagged[0] > 0 else -1.0
-    kp_other = kp
-    if 0.0 <= tau * ki < 1.0:
-        kp, kp_other = float(lagged[0] + tau * lagged[1]), kp
-        ki, c = float(lagged[1]), float(lagged[2])
-    rel_sd = float(np.hypot(np.sqrt(cov[0, 0]) / kp, (kp_other - kp) / kp))
-    period = _period_current(theta, target, omega, error_int, dt, kp, ki, c, limit_A)
-    return SpeedLoop(kp, ki, c, delay, ratio, rel_sd, period, limit_A=limit_A)
+    limit_A = limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
+    if law.kp > 0 and law.ratio <= MAX_RESIDUAL_RATIO:
+        return law.loop(-limit_A, limit_A, limit_A)
+    if not trim:
+        reset = _with_resets(rows)
+        if reset is not None:
+            return reset
+    return SpeedLoop(law.kp, law.ki, float(law.plain[2]), law.delay, law.ratio, np.inf,
+                     np.empty(0), limit_A=limit_A, message=
+                     f"the PI speed law explains the current only to {law.ratio:.2g} times its "
+                     f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
+                     "saturates its voltage or follows another law, so the current between "
+                     "samples is not reconstructed and Kt/J may be high by up to "
+                     "π·f_loop·Δt")
+
+
+def _with_resets(rows: _Rows) -> SpeedLoop | None:
+    """The law with the integrator's state unknown after each stretch at the current
+    limit (one constant per stretch), where that explains the current; else None.
+
+    At its limit a drive keeps its integrator from winding up: it clamps it, freezes it
+    or bleeds it off, each drive its own way. After the stretch the integrator holds
+    what that left, which the law's one constant misses by a step at each stretch. Each
+    side's level is the median of the samples within ``LIMIT_SIGMAS`` of that side's
+    extreme (a current sensor's offset moves the two apart), and the samples within
+    ``LIMIT_SIGMAS`` of it are at the limit; a side is a limit where the law goes beyond
+    its level at ``MIN_LIMIT_SAMPLES`` of them, and where the current holds that level
+    (:func:`_held`; a current at the supply's reach peaks there for one sample). The fit
+    leaves out the samples whose speed stencil reaches into a stretch (the acceleration
+    has a kink where the current leaves the limit, as it has at a target change). Left
+    out with them are the kicks, which tell the current samples' delay: the law's fit
+    then finds nearly as good a fit at any delay, with ``kp`` off by a seventh per
+    sample. The delay is the kicks' own instead (:func:`kick_delay`).
+    """
+    current, sigma = rows.current, rows.sigma
+    levels = [float(np.median(current[current <= current.min() + LIMIT_SIGMAS * sigma])),
+              float(np.median(current[current >= current.max() - LIMIT_SIGMAS * sigma]))]
+    sides = [current <= levels[0] + LIMIT_SIGMAS * sigma,
+             current >= levels[1] - LIMIT_SIGMAS * sigma]
+    sides = [side if _held(side) else np.zeros_like(side) for side in sides]
+    if not any(side.any() for side in sides):
+        return None
+    reach = len(CENTRAL[0]) // 2
+    for _ in range(len(sides)):
+        at_limit = sides[0] | sides[1]
+        starts = at_limit & ~np.concatenate([[False], at_limit[:-1]])
+        near = np.convolve(at_limit, np.ones(2 * reach + 1), mode="same") > 0
+        law = rows.fit(near, np.cumsum(starts), False, [kick_delay(current, rows.target)])
+        if law is None:
+            return None
+        limits = [side.any() and law.beyond(side, abs(level)) >= MIN_LIMIT_SAMPLES
+                  for side, level in zip(sides, levels, strict=True)]
+        if all(limits[k] or not sides[k].any() for k in range(len(sides))):
+            break
+        # a side the law does not go beyond is no limit: its samples are fitted
+        sides = [side if ok else np.zeros_like(side) for side, ok in zip(sides, limits, strict=True)]
+        if not any(side.any() for side in sides):
+            return None
+    else:
+        return None
+    if not (law.kp > 0 and law.ratio <= MAX_RESIDUAL_RATIO and law.resets > 0):
+        return None
+    low = levels[0] if sides[0].any() else -np.inf
+    high = levels[1] if sides[1].any() else np.inf
+    limit_A = max(abs(level) for level, side in zip(levels, sides, strict=True) if side.any())
+    return law.loop(low, high, limit_A, sides)
+
+
+def _held(at_level: np.ndarray) -> bool:
+    """Whether the current holds a level: the samples at it come in stretches of a median
+    length of at least ``HELD_SAMPLES`` (a drive at its current limit holds it while the
+    law asks for more; a current slowed by the supply voltage reaches its peak and turns)."""
+    edges = np.diff(np.concatenate([[0], at_level.astype(int), [0]]))
+    lengths = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    return bool(len(lengths) and np.median(lengths) >= HELD_SAMPLES)
+
+
+def kick_delay(current: np.ndarray, target: np.ndarray) -> int:
+    """The current samples' delay (samples, 0 … ``MAX_DELAY``) at which the current
+    moves most with the target's changes: the target held from sample ``n`` kicks the
+    current sampled at ``n + 1 + delay`` (``Σ sign(Δr)·Δi`` over the changes, largest),
+    whether or not the kick reaches the current limit."""
+    changes = np.flatnonzero(np.diff(target) != 0) + 1
+    scores = []
+    for delay in range(MAX_DELAY + 1):
+        n = changes[changes + 1 + delay < len(current)]
+        step = current[n + 1 + delay] - current[n + delay]
+        scores.append(float(np.sum(np.sign(target[n] - target[n - 1]) * step)))
+    return int(np.argmax(scores))
+
+
+class _Rows:
+    """What the law is fitted from: the kink-free speed and acceleration at the samples,
+    the tracking error's integral, and the current and its noise."""
+
+    def __init__(self, theta: np.ndarray, current: np.ndarray, target: np.ndarray,
+                 dt: float, quant_rad: float, sigma: float) -> None:
+        n = len(theta)
+        self.theta, self.current, self.target, self.dt = theta, current, target, dt
+        self.omega, self.alpha, self.spread = kink_free_derivatives(theta, target, dt)
+        self.angle_sd = quant_rad / np.sqrt(12.0)
+        self.error_int = tracking_errors(theta, target, dt)[1]
+        self.error = np.concatenate([target[:1], target[:-1]]) - self.omega
+        self.sigma = sigma
+        keep = np.isfinite(self.omega)
+        keep[0] = False   # read before the first target: the one before it is unknown
+        keep[n - MAX_DELAY:] = False
+        self.keep = keep
+
+    def fit(self, at_limit: np.ndarray, segment: np.ndarray, trim: bool,
+            delays: list[int] | None = None) -> _Law | None:
+        """The law fitted on the samples off ``at_limit``, one constant per ``segment``
+        label (of the current sample), at the delay of ``delays`` (default 0 …
+        ``MAX_DELAY``) that fits best; None where too few samples are left."""
+        n = len(self.theta)
+        best: tuple[float, int, np.ndarray] | None = None
+        for delay in range(MAX_DELAY + 1) if delays is None else delays:
+            rows = np.flatnonzero(self.keep[:n - delay] & ~at_limit[delay:])
+            if len(rows) < MIN_ROWS:
+                continue
+            if trim:
+                rows = self._trimmed(rows, delay, segment)
+            mean_square = self._weighted(rows, delay, segment, True)[2]
+            # a longer delay must fit better beyond the sampling error of a mean square
+            # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed,
+            # it must also explain as many samples (a drive whose supply slows the current
+            # looks delayed here: the simulation that models the supply tests the delay
+            # against none, :func:`~stand.ident.closed_loop.fit_closed_loop`)
+            if best is None or (
+                    mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
+                    and (not trim or len(rows) >= len(best[2]))):
+                best = (mean_square, delay, rows)
+        if best is None:
+            return None
+        _, delay, rows = best
+        plain, A, mean_square = self._weighted(rows, delay, segment, False)
+        lagged, _, lag_square = self._weighted(rows, delay, segment, True)
+        labels = np.unique(segment[rows + delay])
+        return _Law(self, delay, segment, labels, plain, lagged, A, mean_square,
+                    float(np.sqrt(lag_square)))
+
+    def columns(self, rows: np.ndarray, delay: int, segment: np.ndarray,
+                lag: bool) -> np.ndarray:
+        """The law's columns at ``rows``: ``r − ω``, the error's integral, a constant per
+        segment the rows' current samples are in, and with ``lag`` the acceleration."""
+        labels, which = np.unique(segment[rows + delay], return_inverse=True)
+        constants = np.zeros((len(rows), len(labels)))
+        constants[np.arange(len(rows)), which] = 1.0
+        parts = [self.error[rows, None], self.error_int[rows, None], constants]
+        return np.hstack(parts + [self.alpha[rows, None]] if lag else parts)
+
+    def _weighted(self, rows: np.ndarray, delay: int, segment: np.ndarray,
+                  lag: bool) -> tuple[np.ndarray, np.ndarray, float]:
+        """Weighted least squares (weights from the rows' noise at the plain fit's kp)."""
+        X = self.columns(rows, delay, segment, lag)
+        y = self.current[rows + delay]
+        beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+        sd = np.sqrt(self.sigma**2 + (beta[0] * self.angle_sd * self.spread[rows]) ** 2)
+        A, b = X / sd[:, None], y / sd
+        beta, *_ = np.linalg.lstsq(A, b, rcond=None)
+        return beta, A, float(np.sum((b - A @ beta) ** 2)) / (len(rows) - X.shape[1])
+
+    def _trimmed(self, rows: np.ndarray, delay: int, segment: np.ndarray) -> np.ndarray:
+        """``rows`` less those the law misses by more than ``TRIM_SIGMAS``, repeatedly."""
+        for _ in range(TRIM_PASSES):
+            beta = self._weighted(rows, delay, segment, False)[0]
+            sd = np.sqrt(self.sigma**2 + (beta[0] * self.angle_sd * self.spread[rows]) ** 2)
+            law = self.columns(rows, delay, segment, False) @ beta
+            inside = np.abs(self.current[rows + delay] - law) <= TRIM_SIGMAS * sd
+            if inside.all() or inside.sum() < MIN_ROWS:
+                break
+            rows = rows[inside]
+        return rows
+
+
+@dataclass(frozen=True)
+class _Law:
+    """The PI law fitted at one delay: ``plain`` is ``[kp, ki, c…]`` (a constant per
+    segment label in ``labels``), ``lagged`` the same with the acceleration's coefficient
+    last (the drive's lag); ``A`` and ``mean_square`` are the plain fit's weighted
+    design and residual mean square, ``ratio`` the lagged fit's RMS over the noise."""
+
+    rows: _Rows
+    delay: int
+    segment: np.ndarray
+    labels: np.ndarray
+    plain: np.ndarray
+    lagged: np.ndarray
+    A: np.ndarray
+    mean_square: float
+    ratio: float
+
+    @property
+    def kp(self) -> float:
+        return float(self.plain[0])
+
+    @property
+    def ki(self) -> float:
+        return float(self.plain[1])
+
+    @property
+    def resets(self) -> int:
+        """Integrator constants beyond the first."""
+        return len(self.labels) - 1
+
+    def constant_at(self, samples: np.ndarray, constants: np.ndarray) -> np.ndarray:
+        """The constant of the segment each current sample is in (a segment the fit has
+        no rows of takes the one before it)."""
+        k = np.searchsorted(self.labels, self.segment[samples], side="right") - 1
+        return constants[np.clip(k, 0, len(self.labels) - 1)]
+
+    def beyond(self, at_side: np.ndarray, level: float) -> int:
+        """How many samples of ``at_side`` whose speed the law can use it (with the lag)
+        puts beyond ``level`` (a magnitude, A) by ``LIMIT_SIGMAS`` of the noise."""
+        r, n = self.rows, len(at_side)
+        rows = np.flatnonzero(r.keep[:n - self.delay] & at_side[self.delay:])
+        b = self.lagged
+        law = (b[0] * r.error[rows] + b[1] * r.error_int[rows]
+               + self.constant_at(rows + self.delay, b[2:-1]) + b[-1] * r.alpha[rows])
+        return int(np.sum(np.abs(law) > level + LIMIT_SIGMAS * r.sigma))
+
+    def loop(self, low: float, high: float, limit_A: float,
+             sides: list[np.ndarray] | None = None) -> SpeedLoop:
+        """The :class:`SpeedLoop` of this fit, its current over each period clipped to
+        ``[low, high]`` (and at the level of a side both of whose samples are on it,
+        ``sides``: the samples at the low and the high limit)."""
+        r = self.rows
+        n = len(r.theta)
+        cov = np.linalg.inv(self.A.T @ self.A) * self.mean_square
+        kp, ki, constants = self.kp, self.ki, self.plain[2:]
+        lagged = self.lagged
+        # with the drive's delay τ (current loop, computation): i ≈ i_cmd − τ·i_cmd'
+        # = … + τ·kp·α − τ·ki·(r − ω); on exponential transients τ and kp trade off, so
+        # the two fits' difference enters the uncertainty
+        tau = float(lagged[-1] / lagged[0]) if lagged[0] > 0 else -1.0
+        kp_other = kp
+        if 0.0 <= tau * ki < 1.0:
+            kp, kp_other = float(lagged[0] + tau * lagged[1]), kp
+            ki, constants = float(lagged[1]), lagged[2:-1]
+        rel_sd = float(np.hypot(np.sqrt(cov[0, 0]) / kp, (kp_other - kp) / kp))
+        shown = np.minimum(np.arange(n - 1) + self.delay, n - 1)
+        c = self.constant_at(shown, constants)
+        period = _period_current(r.theta, r.target, r.omega, r.error_int, r.dt, kp, ki, c,
+                                 low, high)
+        if sides is not None:
+            ends = np.minimum(shown + 1, n - 1)
+            for side, level in zip(sides, (low, high), strict=True):
+                held = np.append(side[shown] & side[ends], False)
+                period[held] = level
+        return SpeedLoop(kp, ki, float(constants[0]), self.delay, self.ratio, rel_sd, period,
+                         limit_A=limit_A, resets=self.resets)
 
 
 def _period_current(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,
-                    error_int: np.ndarray, dt: float, kp: float, ki: float, c: float,
-                    limit: float) -> np.ndarray:
-    """Mean of the law's current over the period after each sample, clipped at
-    ``±limit`` (the last period repeats the one before).
+                    error_int: np.ndarray, dt: float, kp: float, ki: float, c: np.ndarray,
+                    low: float, high: float) -> np.ndarray:
+    """Mean of the law's current over the period after each sample (``c``: the constant
+    of each period), clipped to ``[low, high]`` (the last period repeats the one before).
 
     Unclipped, the mean is exact from the period's mean speed. Where the law's current
-    at a period's start exceeds the limit, the speed within the period is taken as the
+    at a period's start is beyond a limit, the speed within the period is taken as the
     quadratic through the speeds at its ends and its mean, and the law's current on
     ``SUBSTEPS`` points of it is clipped and averaged.
     """
     mean_speed = np.diff(theta) / dt
     r = target[:-1]
     period = kp * (r - mean_speed) + c + ki * error_int[:-1] + ki * dt / 2 * (r - mean_speed)
-    if np.isfinite(limit):
-        start = kp * (r - omega[:-1]) + c + ki * error_int[:-1]
-        w0, w1 = omega[:-1], omega[1:]
-        for k in np.flatnonzero(np.isfinite(w0) & np.isfinite(w1) & (np.abs(start) > limit)):
-            s = (np.arange(SUBSTEPS) + 0.5) / SUBSTEPS
-            # quadratic ω(s) with ω(0) = w0, ω(1) = w1 and mean ω̄
-            b2 = 3 * (w0[k] + w1[k]) - 6 * mean_speed[k]
-            speed = w0[k] + (w1[k] - w0[k] - b2) * s + b2 * s**2
-            drift = ki * dt * np.cumsum(r[k] - speed) / SUBSTEPS
-            law = kp * (r[k] - speed) + c + ki * error_int[k] + drift
-            period[k] = float(np.mean(np.clip(law, -limit, limit)))
+    start = kp * (r - omega[:-1]) + c + ki * error_int[:-1]
+    w0, w1 = omega[:-1], omega[1:]
+    for k in np.flatnonzero(np.isfinite(w0) & np.isfinite(w1) & ((start > high) | (start < low))):
+        s = (np.arange(SUBSTEPS) + 0.5) / SUBSTEPS
+        # quadratic ω(s) with ω(0) = w0, ω(1) = w1 and mean ω̄
+        b2 = 3 * (w0[k] + w1[k]) - 6 * mean_speed[k]
+        speed = w0[k] + (w1[k] - w0[k] - b2) * s + b2 * s**2
+        drift = ki * dt * np.cumsum(r[k] - speed) / SUBSTEPS
+        law = kp * (r[k] - speed) + c[k] + ki * error_int[k] + drift
+        period[k] = float(np.mean(np.clip(law, low, high)))
     return np.concatenate([period, period[-1:]])
 
 

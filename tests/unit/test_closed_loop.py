@@ -131,6 +131,7 @@ def test_a_loop_that_saturates_its_supply_is_simulated_when_the_supply_is_told()
     assert plain.Kt_over_J / KT_OVER_J - 1 > 0.05
     assert plain.Kt_over_J_ci95[0] <= KT_OVER_J <= plain.Kt_over_J_ci95[1]
     assert SUPPLY_UNKNOWN in plain.warnings
+    assert any("PI speed law explains the current only" in w for w in plain.warnings)
     told = DriveSupply(6.0, MOTOR.R * 1.2, MOTOR.L / 1.2, MOTOR.Kt * 1.1)
     r = identify_run(run, supply=told)
     assert abs(r.Kt_over_J / KT_OVER_J - 1) < 0.01
