@@ -79,8 +79,7 @@ def loop_input(run: Run, sig: Signals) -> LoopInput:
     # on the samples' timeline: the current sample n + delay shows the period after n
     current = _late(period, loop.delay)
     # the law's parts over each period: kp·(r − ω̄) and ki·(∫r − θ)
-    error, lag = tracking_errors(sig.theta, np.asarray(run[TARGET_COLUMN], dtype=float),
-                                 sig.dt_s)
+    error, lag = tracking_errors(sig.theta, target, sig.dt_s)
     parts = np.column_stack([_late(loop.kp * error, loop.delay),
                              _late(loop.ki * lag, loop.delay)])
     note = (f"{run.source}: kp {loop.kp:.3g} A·s/rad, ki {loop.ki:.3g} A/rad, the law "

@@ -268,11 +268,12 @@ def _with_resets(rows: _Rows) -> SpeedLoop | None:
     if not any(side.any() for side in sides):
         return None
     reach = len(CENTRAL[0]) // 2
+    delays = [kick_delay(current, rows.target)]
     for _ in range(len(sides)):
         at_limit = sides[0] | sides[1]
         starts = at_limit & ~np.concatenate([[False], at_limit[:-1]])
         near = np.convolve(at_limit, np.ones(2 * reach + 1), mode="same") > 0
-        law = rows.fit(near, np.cumsum(starts), False, [kick_delay(current, rows.target)])
+        law = rows.fit(near, np.cumsum(starts), False, delays)
         if law is None:
             return None
         limits = [side.any() and law.beyond(side, abs(level)) >= MIN_LIMIT_SAMPLES
@@ -340,14 +341,14 @@ class _Rows:
         label (of the current sample), at the delay of ``delays`` (default 0 …
         ``MAX_DELAY``) that fits best; None where too few samples are left."""
         n = len(self.theta)
-        best: tuple[float, int, np.ndarray] | None = None
+        best: tuple[float, int, np.ndarray, np.ndarray] | None = None
         for delay in range(MAX_DELAY + 1) if delays is None else delays:
             rows = np.flatnonzero(self.keep[:n - delay] & ~at_limit[delay:])
             if len(rows) < MIN_ROWS:
                 continue
             if trim:
                 rows = self._trimmed(rows, delay, segment)
-            mean_square = self._weighted(rows, delay, segment, True)[2]
+            lagged, _, mean_square = self._weighted(rows, delay, segment, True)
             # a longer delay must fit better beyond the sampling error of a mean square
             # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed,
             # it must also explain as many samples (a drive whose supply slows the current
@@ -356,12 +357,11 @@ class _Rows:
             if best is None or (
                     mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
                     and (not trim or len(rows) >= len(best[2]))):
-                best = (mean_square, delay, rows)
+                best = (mean_square, delay, rows, lagged)
         if best is None:
             return None
-        _, delay, rows = best
+        lag_square, delay, rows, lagged = best
         plain, A, mean_square = self._weighted(rows, delay, segment, False)
-        lagged, _, lag_square = self._weighted(rows, delay, segment, True)
         labels = np.unique(segment[rows + delay])
         return _Law(self, delay, segment, labels, plain, lagged, A, mean_square,
                     float(np.sqrt(lag_square)))
