@@ -299,7 +299,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
     bench = Bench(law_train.sampled, law_holdout.sampled, horizon_s)
     spec = _nominal_spec(bench.on_train, spring)
     notes = [x.note for x in (law_train, law_holdout) if x.note and not x.from_law]
-    notes = notes[:1] + _kick_note(spec)
+    notes = notes[:1] + _kick_note(spec) + _supply_note(spec, bench.train)
     if not law_train.from_law:
         return bench, spec, ho, notes
     law_bench = Bench(law_train.signals, law_holdout.signals, horizon_s)
@@ -314,7 +314,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
         f"the PI speed law holds at the samples ({law_train.note}), but its current "
         f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %: the "
         "sampled current drives the models (the loop may saturate its voltage between "
-        "samples)", *_kick_note(spec)]
+        "samples)", *_kick_note(spec), *_supply_note(spec, bench.train)]
 
 
 def _kick_note(spec: ModelSpec) -> list[str]:
@@ -326,6 +326,19 @@ def _kick_note(spec: ModelSpec) -> list[str]:
             "target's change at the period's start (in proportion, slewed as the supply "
             "limits it, and against the back-EMF), fitted with each model; they simulate "
             "TRAIN better than the samples alone"]
+
+
+def _supply_note(spec: ModelSpec, train: Signals) -> list[str]:
+    """What the models' input carries of the current's shape where the drive's voltage
+    is at its supply (:mod:`.supply_limit`)."""
+    if not spec.supply or train.at_supply is None:
+        return []
+    return [f"the drive's voltage sits at its supply on {int(np.count_nonzero(train.at_supply))} "
+            f"of {len(train)} samples of TRAIN: there the current follows the armature, "
+            "not the command, and the current over each such period is the samples' plus "
+            "a share of its change, one for each kind of period (at the supply at both "
+            f"ends, at its end, at its start; here: {', '.join(spec.supply)}), fitted with "
+            "each model; they simulate TRAIN better than the samples alone"]
 
 
 def _phase_note(share: float) -> list[str]:

@@ -26,7 +26,7 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from stand.diagnosis import kicks
-from stand.diagnosis.model import ModelSpec
+from stand.diagnosis.model import ModelSpec, supply_classes, supply_within_period
 from stand.errors import NotExcitedError
 
 if TYPE_CHECKING:
@@ -43,13 +43,17 @@ WEIGHT_REFINEMENTS = 3
 
 def pick(on_train: Bench, spec: ModelSpec) -> ModelSpec:
     """``spec`` with the input weight that simulates TRAIN best (``on_train``: TRAIN
-    against itself, :attr:`Bench.on_train`).
+    against itself, :attr:`Bench.on_train`), with or without a speed loop's kicks
+    (:mod:`.kicks`) and the current's shape at the drive's supply
+    (:mod:`.supply_limit`) where the run shows them.
 
     A current that is already each period's mean (:data:`PERIOD_MEAN_WEIGHT`) keeps it.
     Otherwise the weight is picked on the grid ``INPUT_WEIGHTS`` and then refined by halving the
     step around the best one ``WEIGHT_REFINEMENTS`` times, within the grid's range.
 
-    Weights under which TRAIN gives no positive current gain are skipped (on a run whose
+    Shares of the current's change at the supply that put its weight outside the period
+    are skipped (:func:`~stand.diagnosis.model.supply_within_period`). Weights under
+    which TRAIN gives no positive current gain are skipped (on a run whose
     current moves in steps much faster than the shaft, a reconstruction off by most of
     a sample can invert the fitted gain); if none gives one, the run is not excited and
     :class:`~stand.errors.NotExcitedError` is raised.
@@ -57,34 +61,40 @@ def pick(on_train: Bench, spec: ModelSpec) -> ModelSpec:
     if spec.input_weight == PERIOD_MEAN_WEIGHT:
         return spec  # the speed loop's current, already each period's mean: nothing to pick
     sig = on_train.train
-    gaps: dict[tuple[float, bool], float] = {}
+    gaps: dict[tuple[float, bool, tuple[str, ...]], float] = {}
     error: NotExcitedError | None = None
 
-    def weighted(w: float, kicked: bool) -> ModelSpec:
-        return replace(spec, input_weight=w, kicks=kicked)
+    def weighted(w: float, kicked: bool, supplied: tuple[str, ...]) -> ModelSpec:
+        return replace(spec, input_weight=w, kicks=kicked, supply=supplied)
 
-    def gap(w: float, kicked: bool) -> None:
+    def gap(w: float, kicked: bool, supplied: tuple[str, ...]) -> None:
         nonlocal error
-        if (w, kicked) in gaps or not INPUT_WEIGHTS[0] <= w <= INPUT_WEIGHTS[-1]:
+        if (w, kicked, supplied) in gaps or not INPUT_WEIGHTS[0] <= w <= INPUT_WEIGHTS[-1]:
             return
         try:
-            gaps[w, kicked] = on_train.score(weighted(w, kicked)).gap
+            scored = on_train.score(weighted(w, kicked, supplied))
         except NotExcitedError as exc:
-            gaps[w, kicked], error = math.inf, exc
+            gaps[w, kicked, supplied], error = math.inf, exc
+            return
+        gaps[w, kicked, supplied] = (scored.gap if supply_within_period(scored.model)
+                                     else math.inf)
 
-    choices = ((False, True) if sig.target_change is not None
-               and kicks.resolvable(sig.target_change) else (False,))
+    kick_choices = ((False, True) if sig.target_change is not None
+                    and kicks.resolvable(sig.target_change) else (False,))
+    present = supply_classes(sig)
+    supply_choices = ((), present) if present else ((),)
     for w in INPUT_WEIGHTS:
-        for kicked in choices:
-            gap(w, kicked)
+        for kicked in kick_choices:
+            for supplied in supply_choices:
+                gap(w, kicked, supplied)
     best = min(gaps, key=gaps.__getitem__)
     if not math.isfinite(gaps[best]):
         assert error is not None
         raise error
     step = (INPUT_WEIGHTS[1] - INPUT_WEIGHTS[0]) / 2
     for _ in range(WEIGHT_REFINEMENTS):
-        gap(best[0] - step, best[1])
-        gap(best[0] + step, best[1])
+        gap(best[0] - step, *best[1:])
+        gap(best[0] + step, *best[1:])
         best = min(gaps, key=gaps.__getitem__)
         step /= 2
     return weighted(*best)

@@ -27,7 +27,7 @@ import numpy as np
 from stand.diagnosis.model import FittedModel
 from stand.diagnosis.signals import Signals
 from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
-from stand.ident.noise import MAD_TO_SIGMA
+from stand.ident.noise import second_difference_sigma
 
 #: A gap that remains above this many times the gap noise explains
 #: (:func:`noise_gap_percent`) is ``unexplained``. The noise gap is an estimate of an RMS
@@ -61,9 +61,7 @@ def noise_gap_percent(sig: Signals, scale: float, horizon: int, model: FittedMod
     deviation, which the steps of a command or the motion of a loop barely move.
     """
     quant = noise_floor(sig, scale)
-    second = np.diff(sig.current, 2)
-    mad = float(np.median(np.abs(second - np.median(second))))
-    sigma_i = MAD_TO_SIGMA * mad / math.sqrt(6.0)
+    sigma_i = second_difference_sigma(sig.current)
     walk = abs(model.coef["current"]) * sig.dt_s * sigma_i * math.sqrt(horizon / 2)
     return math.hypot(quant, 100.0 * walk / scale)
 

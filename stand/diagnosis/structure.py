@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stand.diagnosis import kicks
-from stand.diagnosis.model import kick_basis
+from stand.diagnosis.model import kick_basis, supply_basis, supply_classes
 from stand.diagnosis.signals import Signals
 from stand.diagnosis.significance import FAMILY_ALPHA, PairedTest, paired_improvement
 from stand.errors import InputError
@@ -89,6 +89,10 @@ class _Scales:
     #: TRAIN resolves (:func:`stand.diagnosis.kicks.resolvable`): what it misses of the
     #: kicks is nuisance on both runs alike (:func:`columns`).
     kicked: bool = False
+    #: The classes of periods at the drive's supply TRAIN has enough of: what the samples
+    #: miss of the current there (:mod:`stand.diagnosis.supply_limit`) is nuisance on
+    #: both runs alike (:func:`columns`).
+    supplied: tuple[str, ...] = ()
 
 
 def _scales(sig: Signals) -> _Scales:
@@ -96,7 +100,7 @@ def _scales(sig: Signals) -> _Scales:
     current = float(np.sqrt(np.mean(sig.current**2))) or 1.0
     kicked = (sig.loop_parts is None and sig.target_change is not None
               and kicks.resolvable(sig.target_change))
-    return _Scales(omega, current, kicked)
+    return _Scales(omega, current, kicked, supply_classes(sig))
 
 
 #: Key of the low-passed measured current in a run's cache (:attr:`Signals.cache`).
@@ -129,6 +133,11 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
     if sig.loop_parts is not None and "current" in names:
         # the speed law's current: what its gains' errors leave are its parts
         out = np.column_stack([out, sig.loop_parts / scales.current])
+    if scales.supplied and "current" in names:
+        # what the samples miss of the current where the drive is at its supply
+        # (:mod:`.supply_limit`), nuisance on both runs alike
+        out = np.column_stack([out, sig.filt(supply_basis(sig, 0, scales.supplied))
+                               / scales.current])
     if scales.kicked and "current" in names:
         # the sampled current under a speed loop: what it misses of the kicks, in the
         # target's changes alone (with the speed they would take part of a speed shape)

@@ -25,6 +25,17 @@ def noise_sigma(signal: np.ndarray) -> float:
 
 
 
+def second_difference_sigma(signal: np.ndarray) -> float:
+    """Standard deviation of the white noise on a signal, read off the median absolute
+    deviation of its second differences (each carrying ``6σ²`` of white noise); the
+    steps of a command and a smooth motion barely move it. In the signal's unit; 0 for
+    fewer than three samples."""
+    d2 = np.diff(np.asarray(signal, dtype=float), 2)
+    if d2.size == 0:
+        return 0.0
+    return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
 def noise_variance_uncertainty(signal: np.ndarray) -> float:
     """Relative uncertainty of ``noise_sigma(signal)**2``.
 
@@ -35,10 +46,9 @@ def noise_variance_uncertainty(signal: np.ndarray) -> float:
     """
     x = np.asarray(signal, dtype=float)
     first = noise_sigma(x)
-    d2 = np.diff(x, 2)
-    if d2.size == 0 or first == 0.0:
+    if x.size < 3 or first == 0.0:
         return 1.0
-    second = MAD_TO_SIGMA * float(np.median(np.abs(d2 - np.median(d2)))) / np.sqrt(6.0)
+    second = second_difference_sigma(x)
     return max(MIN_VARIANCE_UNCERTAINTY, abs(first**2 - second**2) / first**2)
 
 

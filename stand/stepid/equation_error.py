@@ -20,6 +20,7 @@ import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
 from stand.errors import NotExcitedError
+from stand.ident.noise import second_difference_sigma
 from stand.stepid.model import StepData
 
 #: A speed range beyond this many noise standard deviations counts as a response.
@@ -34,9 +35,7 @@ def noise_level(values: np.ndarray) -> float:
     The median absolute deviation of second differences, scaled for Gaussian noise
     (``Δ²`` of white noise has variance ``6·σ²``); steps affect only a few samples.
     """
-    second = np.diff(values, 2)
-    mad = float(np.median(np.abs(second - np.median(second))))
-    sigma = 1.4826 * mad / np.sqrt(6.0)
+    sigma = second_difference_sigma(values)
     floor = NOISE_FLOOR_FRACTION * max(float(np.max(np.abs(values))), 1e-12)
     return max(sigma, floor)
 

@@ -261,7 +261,7 @@ def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S,
     sensors and noise seed)."""
     run = _simulate(case, which, duration_s, effects)
     # a speed-mode run holds its target, as the stand controller records it
-    names = ("time_s", "current_A", "position_rad", TARGET_COLUMN)
+    names = ("time_s", "current_A", "position_rad", "voltage_V", TARGET_COLUMN)
     return {k: run[k] for k in names if k in run}
 
 
