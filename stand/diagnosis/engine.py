@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stand import effects
-from stand.diagnosis import input_weight
+from stand.diagnosis import input_weight, supply_limit
 from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
 from stand.diagnosis.loop_input import loop_inputs
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual
@@ -288,7 +288,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
     still miss the current between them (a kick that needs more than the supply
     voltage); its current then simulates TRAIN worse and the samples' stays.
     """
-    tr, ho = prepare(train), prepare(holdout)
+    tr, ho = (supply_limit.marked(run, prepare(run)) for run in (train, holdout))
     if abs(tr.dt_s - ho.dt_s) > 0.01 * tr.dt_s:
         raise InputError(
             f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lapack
 
-from stand.diagnosis import supply_limit
 from stand.errors import InputError
 from stand.runfile import Run
 
@@ -82,9 +81,10 @@ class Signals:
     #: (:mod:`.kicks`); None otherwise.
     target_change: np.ndarray | None = None
     #: Where the run records the drive's voltage (``voltage_V``) and it sits at the
-    #: supply on some samples (:func:`stand.diagnosis.supply_limit.at_supply`): those
-    #: samples (bool, one per sample), whose periods' current the input reconstruction
-    #: may reshape (:mod:`.supply_limit`); None otherwise.
+    #: supply on some samples (:func:`stand.diagnosis.supply_limit.marked`, which the
+    #: diagnosis applies; :func:`prepare` leaves it None): those samples (bool, one per
+    #: sample), whose periods' current the input reconstruction may reshape
+    #: (:mod:`.supply_limit`); None otherwise.
     at_supply: np.ndarray | None = None
     cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False,
                                                         compare=False)
@@ -228,9 +228,7 @@ def prepare(run: Run) -> Signals:
     return Signals(dt_s=dt, theta=theta, current=current,
                    omega_meas=central_difference(theta, dt), theta_f=theta_f,
                    omega_f=omega_f, accel_f=accel_f, quant_rad=quantization_step(theta),
-                   top_speed=float(np.quantile(np.abs(omega_f), 0.95)), source=run.source,
-                   at_supply=(supply_limit.at_supply(np.asarray(run["voltage_V"], dtype=float))
-                              if "voltage_V" in run else None))
+                   top_speed=float(np.quantile(np.abs(omega_f), 0.95)), source=run.source)
 
 
 def correlation_time(x: np.ndarray) -> float:

@@ -40,9 +40,13 @@ another's 13-fold); the loop's kicks are that input's reconstruction there.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from stand.diagnosis.signals import Signals
 from stand.ident.noise import second_difference_sigma
+from stand.runfile import Run
 
 #: The periods' classes, by where the voltage is at the supply: at both ends, at the end
 #: only, at the start only (:func:`basis`).
@@ -93,6 +97,14 @@ def at_supply(voltage: np.ndarray) -> np.ndarray | None:
     return flagged
 
 
+def marked(run: Run, sig: Signals) -> Signals:
+    """``sig`` (prepared from ``run``) with the samples at the drive's supply
+    (:func:`at_supply` of the run's ``voltage_V``; ``sig`` unchanged without one)."""
+    if "voltage_V" not in run:
+        return sig
+    return replace(sig, at_supply=at_supply(np.asarray(run["voltage_V"], dtype=float)))
+
+
 def _masks(flagged: np.ndarray) -> dict[str, np.ndarray]:
     """Each class's periods (bool, one per sample: the period after it)."""
     start = flagged
@@ -125,4 +137,4 @@ def basis(current: np.ndarray, flagged: np.ndarray | None,
 
 
 __all__ = ["CLASSES", "MAX_SHARE", "MIN_LEVEL_RATIO", "MIN_PERIODS", "MIN_SAMPLES",
-           "TOLERANCE_SHARE", "at_supply", "basis", "classes"]
+           "TOLERANCE_SHARE", "at_supply", "basis", "classes", "marked"]

@@ -24,7 +24,6 @@ def noise_sigma(signal: np.ndarray) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
 
 
-
 def second_difference_sigma(signal: np.ndarray) -> float:
     """Standard deviation of the white noise on a signal, read off the median absolute
     deviation of its second differences (each carrying ``6σ²`` of white noise); the

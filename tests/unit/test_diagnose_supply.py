@@ -24,6 +24,7 @@ from stand.diagnosis.supply_limit import (
     TOLERANCE_SHARE,
     at_supply,
     classes,
+    marked,
 )
 from stand.excitation import excitation
 from stand.physics.effects import Effects
@@ -107,10 +108,12 @@ def test_an_effect_at_the_supply_is_still_named() -> None:
 
 
 def test_the_flags_reach_the_signals(runs: tuple[Run, Run]) -> None:
-    sig = prepare(runs[0])
+    assert prepare(runs[0]).at_supply is None  # the diagnosis marks it, not every user
+    sig = marked(runs[0], prepare(runs[0]))
     assert sig.at_supply is not None
     assert supply_classes(sig) == ("both", "end", "start")
-    assert prepare(_without_voltage(runs[0])).at_supply is None
+    plain = _without_voltage(runs[0])
+    assert marked(plain, prepare(plain)).at_supply is None
     # under a speed loop the current is the loop's, and its kicks reconstruct it
     looped = replace(sig, target_change=np.zeros(len(sig)), cache={})
     assert supply_classes(looped) == ()
