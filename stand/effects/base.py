@@ -159,9 +159,9 @@ class Effect:
     moves_the_current: ClassVar[bool] = False
 
     @classmethod
-    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
-        """``base`` with the effect at each value the identification tries (one spec
-        for an effect without a hyper-parameter); ``top_speed`` is the run's, rad/s."""
+    def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
+        """``base`` with the effect at each value the identification tries on the run
+        ``sig`` (one spec for an effect without a hyper-parameter)."""
         raise NotImplementedError
 
     @classmethod

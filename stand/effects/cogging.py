@@ -83,7 +83,7 @@ class Cogging(Effect):
         return out
 
     @classmethod
-    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+    def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
         return ident_orders(lambda n: replace(base, cogging_N=n))
 
     @classmethod

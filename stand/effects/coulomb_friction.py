@@ -60,7 +60,7 @@ class CoulombFriction(Effect):
         return out
 
     @classmethod
-    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+    def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
         return [replace(base, coulomb=True)]
 
     @classmethod

@@ -50,7 +50,7 @@ class CurrentOffset(Effect):
         return {"i0": -model.coef["one"] / model.coef["current"]}
 
     @classmethod
-    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+    def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
         return [replace(base, offset=True)]
 
     @classmethod

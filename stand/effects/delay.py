@@ -86,7 +86,7 @@ class Delay(Effect):
     moves_the_current: ClassVar[bool] = True
 
     @classmethod
-    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
+    def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
         return [replace(base, delay=k) for k in range(1, IDENT_MAX_DELAY_SAMPLES + 1)]
 
     @classmethod

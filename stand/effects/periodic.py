@@ -104,10 +104,11 @@ def search_order(base: ModelSpec, train: Signals, of_order: Callable[[int], Mode
     return picked if simulated(picked) < (1 - SIMULATION_MARGIN) * simulated(first) else first
 
 
-def ident_orders(of_order: Callable[[int], ModelSpec]) -> list[ModelSpec]:
+def ident_orders(of_order: Callable[[int], ModelSpec],
+                 allowed: Callable[[int], bool] = lambda n: True) -> list[ModelSpec]:
     """``of_order(N)`` at each order the identification tries, 1 to ``IDENT_MAX_ORDER``
-    cycles per revolution."""
-    return [of_order(n) for n in range(1, IDENT_MAX_ORDER + 1)]
+    cycles per revolution (those ``allowed``)."""
+    return [of_order(n) for n in range(1, IDENT_MAX_ORDER + 1) if allowed(n)]
 
 
 def harmonic_params(coef: Callable[[str], float], prefix: str, order: int | None,

@@ -114,8 +114,8 @@ class StribeckFriction(Effect):
         return out
 
     @classmethod
-    def ident_grid(cls, base: ModelSpec, top_speed: float) -> list[ModelSpec]:
-        top = max(top_speed, np.finfo(float).tiny)
+    def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
+        top = max(sig.top_speed, np.finfo(float).tiny)
         return [replace(base, stribeck_ws=f * top) for f in IDENT_WS_FRACTIONS]
 
     @classmethod

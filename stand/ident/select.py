@@ -236,7 +236,7 @@ def timing_restriction(names: list[str], fixed: dict[str, float]) -> np.ndarray:
 
 def _candidates(design: Design, spec: ModelSpec, name: str) -> list[ModelSpec]:
     """``spec`` with effect ``name`` added, at every value of its grid."""
-    return effect_registry.get(name).ident_grid(spec, design.sig.top_speed)
+    return effect_registry.get(name).ident_grid(spec, design.sig)
 
 
 def _significant(base: Estimate, cand: Estimate, tried: int) -> float:
