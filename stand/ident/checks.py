@@ -3,7 +3,8 @@
 :func:`effect_params` turns the coefficients of the effect columns into each effect's
 physical parameters. :func:`run_warnings` names what in a run limits the answer: a
 sampling period too long for the motion, a low fit, weak excitation, a shaft that never
-reverses. Warnings are plain sentences; the command line prints them on stderr.
+reverses; :func:`rest_warning`, a shaft that rests over much of the run. Warnings are
+plain sentences; the command line prints them on stderr.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 
 from stand import effects as effect_registry
 from stand.diagnosis.model import ModelSpec
+from stand.ident.columns import Design
 from stand.ident.estimate import Estimate
 from stand.ident.noise import noise_sigma
 from stand.runfile import Run
@@ -28,6 +30,9 @@ LOW_FIT_PERCENT = 50.0
 WEAK_RELATIVE_SE = 0.05
 #: Condition number above which the columns are nearly dependent.
 HIGH_CONDITION = 1e4
+#: Share of the fit's rows left out where the shaft rests (:func:`rest_warning`) above
+#: which the run is named as one that mostly sticks.
+MAX_REST_SHARE = 0.25
 
 
 def effect_params(spec: ModelSpec, effects: list[str], est: Estimate) -> dict[str, dict[str, float]]:
@@ -45,6 +50,19 @@ def sample_correlation(current: np.ndarray) -> float:
     if not signal_var > 0:
         return 1.0
     return float(np.mean(i[1:] * i[:-1]) / signal_var)
+
+
+def rest_warning(design: Design) -> list[str]:
+    """A sentence when the shaft rests over much of the run: the rows whose kernel meets
+    a stretch at rest are left out of the fit (:attr:`Design.moving`), since static
+    friction holds any torque up to its breakaway level there."""
+    share = 1.0 - float(np.mean(design.moving))
+    if share <= MAX_REST_SHARE:
+        return []
+    return [f"the shaft rests (static friction holds it, or it turns slower than the encoder "
+            f"resolves) near {100 * share:.0f} % of the fit's samples, which are left out: "
+            "the friction torque is unknown there; a command that keeps the shaft moving "
+            "(faster reversals, a speed loop that breaks away sooner) gives more data"]
 
 
 def run_warnings(run: Run, est: Estimate, notes: list[str]) -> list[str]:

@@ -26,6 +26,12 @@ the same equation. A column held over each period (the current, the period means
 the friction columns are period means too (of ``sign θ'`` at points within the period,
 from a velocity that keeps each period's mean ``Δθ/Δt``, :meth:`Design.omega_within`).
 
+Rows at rest. Where the encoder reads one angle over two or more periods the shaft rests
+(static friction holds any torque up to its breakaway level) or crawls below the
+encoder's resolution: no friction column knows the torque there, and a speed loop winding
+its current up against a stuck shaft would pull Kt/J towards zero. The rows whose kernel
+meets such a stretch are left out (:attr:`Design.moving`).
+
 Instruments. The measured current carries sensor noise; as a regressor it makes an
 errors-in-variables problem and least squares pulls Kt/J towards zero by the share of
 the filtered noise in the filtered current. Each column that holds the current has an
@@ -101,6 +107,13 @@ SETTLING_AT_START = True
 #: over the period, and the settling's deficit is a share ``1 − w`` of a step (0.04–0.2
 #: on the simulated drives) where the value at the period's start misses a share ``w``.
 RIPPLE_COLUMNS = ("rip_sin", "rip_cos")
+#: A shaft whose encoder reads one angle over at least this many consecutive sample
+#: periods is at rest (held by static friction, which balances whatever torque the drive
+#: makes up to the breakaway level) or turns slower than the encoder resolves: either
+#: way no friction column knows its torque there (``sign θ'`` reads 0). One such period
+#: is a reversal within it (:func:`reversal_lines` places the crossing); two or more are
+#: a stretch the model cannot describe (:func:`still_periods`).
+MIN_STILL_PERIODS = 2
 #: Columns that carry the measured current (and so need an instrument).
 CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, DRIFT_COLUMN,
                              *RIPPLE_COLUMNS})
@@ -112,6 +125,27 @@ def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
         return values
     padded = np.concatenate([np.repeat(values[:1], lag), values, np.repeat(values[-1:], lag)])
     return 0.5 * (padded[:-2 * lag] + padded[2 * lag:])
+
+
+def still_periods(theta: np.ndarray) -> np.ndarray:
+    """Periods (``θ[n] → θ[n + 1]``, the last sample's none) within a stretch of at least
+    :data:`MIN_STILL_PERIODS` consecutive periods over which the angle does not change."""
+    flat = np.append(np.diff(theta) == 0.0, False)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flat.astype(np.int8), [0]])))
+    out = np.zeros(len(theta), dtype=bool)
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        if stop - start >= MIN_STILL_PERIODS:
+            out[start:stop] = True
+    return out
+
+
+def moving_rows(theta: np.ndarray, half_width: int) -> np.ndarray:
+    """Rows of a design of kernel ``half_width`` (``len(θ) − 2·half_width``) whose kernel,
+    widened by a period either way for the held columns, meets no still period
+    (:func:`still_periods`): the rows on which the model's friction holds."""
+    still = np.concatenate([[False], still_periods(theta), [False]]).astype(float)
+    reach = np.convolve(still, np.ones(2 * half_width + 3), mode="valid")
+    return np.asarray(reach == 0.0)
 
 
 #: Points of the search for the crossing within a period (:func:`reversal_lines`).
@@ -164,6 +198,9 @@ class Design:
         Lag of the current instruments, samples (0: least squares, no instruments).
     theta, omega, alpha : ndarray
         Kernel-filtered angle (rad), velocity (rad/s), acceleration (rad/s²) on the rows.
+    moving : ndarray of bool
+        The rows the fit takes: those whose kernel meets no stretch of the shaft at rest
+        (:func:`moving_rows`).
     """
 
     sig: Signals
@@ -172,6 +209,7 @@ class Design:
     theta: np.ndarray
     omega: np.ndarray
     alpha: np.ndarray
+    moving: np.ndarray
     cache: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -187,7 +225,7 @@ class Design:
         """
         g, g1, g2 = kernel(half_width, sig.dt_s)
         theta, omega, alpha = (_convolve_valid(sig.theta, w, sig.dt_s) for w in (g, g1, g2))
-        return cls(sig, half_width, lag, theta, omega, alpha)
+        return cls(sig, half_width, lag, theta, omega, alpha, moving_rows(sig.theta, half_width))
 
     def filt(self, values: np.ndarray, held: bool = True) -> np.ndarray:
         """``values`` through the kernel, on the rows of the design; ``held``: each value
@@ -396,7 +434,7 @@ class Design:
         variance, uncertainty = self.noise_level()
         return variance * float(np.sum(self.noise_weights(weight) ** 2)), uncertainty
 
-    def noise_gram(self, spec: ModelSpec, names: list[str], rows: slice,
+    def noise_gram(self, spec: ModelSpec, names: list[str], rows: np.ndarray,
                    settling_share: float = 0.0) -> np.ndarray:
         """What the current noise adds to ``XᵀX`` of ``matrices(spec, False, timing)``.
 
@@ -441,10 +479,12 @@ class Design:
                             out[j, k] += sigma2 * float(ea @ eb) * float(np.sum(product))
         return out
 
-    def rows(self, spec: ModelSpec, instrumented: bool = True) -> slice:
-        """Rows of ``matrices(spec, instrumented)`` within the filtered signals."""
+    def rows(self, spec: ModelSpec, instrumented: bool = True) -> np.ndarray:
+        """Rows of ``matrices(spec, instrumented)`` within the filtered signals: the
+        :attr:`moving` ones, but those within ``lag`` of either end (where the instrument
+        is padded) and the delay's last samples."""
         lag = self.lag if instrumented else 0
-        return slice(lag, len(self.alpha) - max(lag, spec.delay))
+        return lag + np.flatnonzero(self.moving[lag:len(self.alpha) - max(lag, spec.delay)])
 
     def matrices(self, spec: ModelSpec, instrumented: bool = True, timing: bool = False,
                  settling_share: float = 0.0

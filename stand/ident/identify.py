@@ -25,7 +25,7 @@ from scipy.stats import chi2
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare, quantization_step
 from stand.errors import InputError, NotExcitedError
-from stand.ident.checks import effect_params, run_warnings
+from stand.ident.checks import effect_params, rest_warning, run_warnings
 from stand.ident.closed_loop import ClosedLoopFit, fit_closed_loop
 from stand.ident.columns import TIMING_COLUMN, Design
 from stand.ident.derivatives import auto_half_width, state_derivatives
@@ -349,7 +349,7 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
                             "up to π·f_loop·Δt")
             est = est.with_variance("current", missed_kick_variance(loop, est, run.dt_s))
     params = effect_params(spec, chosen.effects, est)
-    warnings += run_warnings(run, est, chosen.notes)
+    warnings += run_warnings(run, est, chosen.notes) + rest_warning(design)
     timing = spec.delay + current_weight(spec, est)
     return (_result(run, est, "default", no_load_current_A, h, chosen.effects, params,
                     warnings, estimator, timing), refined is not None and refined.holds)

@@ -133,7 +133,8 @@ class Fitter:
         self.timing = estimator in ("bc", "ls")
         self._fits: dict[tuple[ModelSpec, bool], Estimate | NotExcitedError] = {}
         lag = design.lag if estimator == "iv" else 0
-        self.blocks = block_count(len(design.alpha) - 2 * lag, 2 * design.half_width + 1)
+        self.blocks = block_count(int(np.count_nonzero(design.moving)) - 2 * lag,
+                                  2 * design.half_width + 1)
 
     def fit(self, spec: ModelSpec) -> Estimate:
         """Fit ``spec`` (each spec once: the selection and the competitors of

@@ -105,6 +105,33 @@ def test_a_shaft_that_never_reverses_is_named_in_a_warning() -> None:
     assert "current_offset" not in r.effects
 
 
+def sticking_speed_loop_run(seed: int, dt: float = 2e-3) -> Run:
+    """A slow (3 Hz) PI speed loop reversing between ±10 rad/s every 0.6 s against Coulomb
+    friction of 0.16 A (Tc/Kt): the loop's proportional kick (0.075 A) cannot break the
+    shaft away, so it rests at every reversal until the integrator winds up, a third of
+    the run."""
+    kp = 2 * math.pi * 3.0 * MOTOR.J / MOTOR.Kt
+    drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=10.0, current_tau_s=2e-4,
+                        speed_kp=kp, speed_ki=kp * 2 * math.pi * 3.0 / 5)
+    plant = MotorPlant(MOTOR, drive, SensorParams(encoder_lines=1000, current_noise_A=0.005),
+                       Effects.from_mapping({"coulomb_friction": {"Tc": 0.008}}), seed=seed)
+    command = excitation("prbs", int(6.0 / dt), dt, 0.0, 10.0, int(0.6 / dt), seed=seed)
+    out = simulate_motor(plant, "speed", command, dt)
+    return Run({c: out[c] for c in ("time_s", "current_A", "position_rad", "speed_target_rad_s")})
+
+
+@pytest.mark.parametrize("seed", [2, 4])
+def test_a_shaft_held_by_static_friction_is_left_out_of_the_fit(seed: int) -> None:
+    # At rest the current winds up to the breakaway level with no acceleration: no
+    # friction column knows that torque, and fitted it pulled Kt/J to 2 % of the truth
+    # (refused: relative standard error above 50 %). Left out, Kt/J is within 2 % (the
+    # speed loop's own reconstruction, at a few standard errors) and the interval holds.
+    r = identify_run(sticking_speed_loop_run(seed))
+    assert abs(r.Kt_over_J / KT_OVER_J - 1) < 0.02
+    assert r.Kt_over_J_ci95[0] <= KT_OVER_J <= r.Kt_over_J_ci95[1]
+    assert any(w.startswith("the shaft rests") for w in r.warnings)
+
+
 def test_coarse_sampling_is_named_in_a_warning() -> None:
     # 15 ms sampling of a PRBS current held 15 ms: consecutive samples are independent.
     plant = MotorPlant(MOTOR, DriveParams(mode="current", supply_V=48.0, current_limit_A=10.0),
