@@ -24,12 +24,23 @@ import numpy as np
 from stand.diagnosis import kicks, supply_limit
 from stand.diagnosis.backlash_load import load_state
 from stand.diagnosis.dry_friction import period_mean
-from stand.diagnosis.signals import Signals
+from stand.diagnosis.signals import Signals, still_periods
 from stand.errors import InputError, NotExcitedError
 from stand.ident.qmatrix import QSums, solve
 
 #: Samples dropped at each end of a run in the fit (filter and shift transients).
 EDGE_SAMPLES = 50
+#: Reach of the zero-phase filter's kernel on either side, samples: beyond it lies less
+#: than 0.2 % of its weight (:func:`stand.diagnosis.signals.lowpass`).
+FILTER_REACH_SAMPLES = 12
+#: Least stretch of periods with an unchanged angle that the fit leaves out with the
+#: filter's reach around it (:func:`fit_rows`). Three, not the identification's two: a
+#: shaft reversing across one encoder count under a sine spends two periods there, and
+#: the filter's reach around every reversal would take the low speeds that tell
+#: Stribeck friction from Coulomb friction (fresh seed 251 case 40, Ts four times Tc:
+#: called Coulomb friction with two, Stribeck friction with three; a loop resting
+#: hundreds of periods is named Coulomb friction with either).
+MIN_REST_PERIODS = 3
 #: Largest load inertia behind a backlash, relative to the motor's, that a fit may give.
 MAX_LOAD_RATIO = 1000.0
 #: The share ``J_l/(J + J_l)`` of such a load.
@@ -415,10 +426,29 @@ def _fit_columns(spec: ModelSpec, sig: Signals) -> list[tuple[tuple[object, ...]
     return out
 
 
+def fit_rows(sig: Signals, delay: int) -> np.ndarray:
+    """Samples the fit takes: all but ``EDGE_SAMPLES`` at each end (and the delay's last),
+    and but those within the filter's reach (:data:`FILTER_REACH_SAMPLES`, and a period
+    more for breakaway and stop) of a stretch of the shaft at rest (at least
+    :data:`MIN_REST_PERIODS`, :func:`~stand.diagnosis.signals.still_periods`): static
+    friction holds any torque up to its breakaway level there, which no friction
+    model's column knows, and a speed loop winding its current up against a stuck shaft
+    would pull Kt/J towards zero (the simulation steps the sticking itself,
+    :mod:`.dry_friction`)."""
+    key = ("fit rows", delay)
+    if key not in sig.cache:
+        reach = FILTER_REACH_SAMPLES + 1
+        still = np.convolve(still_periods(sig.theta, MIN_REST_PERIODS).astype(float),
+                            np.ones(2 * reach + 1), mode="same")
+        rows = np.arange(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - delay)
+        sig.cache[key] = rows[still[rows] == 0.0]
+    return sig.cache[key]
+
+
 def _stack(spec: ModelSpec, sig: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``ẋ``, ``x`` and ``u`` of the fit (:func:`_fit_columns`)."""
+    """``ẋ``, ``x`` and ``u`` of the fit (:func:`_fit_columns`) on its rows (:func:`fit_rows`)."""
     u_f = np.column_stack([column for _, column in _fit_columns(spec, sig)])
-    keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
+    keep = fit_rows(sig, spec.delay)
     if spec.spring:
         x = np.column_stack([sig.theta_f, sig.omega_f])[keep]
         xdot = np.column_stack([sig.omega_f, sig.accel_f])[keep]
@@ -527,7 +557,7 @@ def _batch_sums(specs: list[ModelSpec], sig: Signals) -> QSums:
         x = np.stack([s[1][:n] for s in stacks])
         u = np.stack([s[2][:n] for s in stacks])
         return QSums.zeros(x.shape[2], u.shape[2], (len(specs),)).add(xdot, x, u, sig.dt_s)
-    keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - specs[0].delay)
+    keep = fit_rows(sig, specs[0].delay)
     _prefetch(specs, sig)
     layouts = [dict(_fit_columns(spec, sig)) for spec in specs]
     shared = {k: v for k, v in layouts[0].items() if all(k in lay for lay in layouts)}

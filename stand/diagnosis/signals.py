@@ -36,6 +36,13 @@ GRID_TOLERANCE = 0.05
 #: Counts around the first position over which a step read off two positions is first
 #: refined (the range then doubles until it covers the run).
 REFINE_COUNTS = 64
+#: A shaft whose encoder reads one angle over at least this many consecutive sample
+#: periods is at rest (held by static friction, which balances whatever torque the drive
+#: makes up to the breakaway level) or turns slower than the encoder resolves: either
+#: way no friction model knows its torque there (``sign θ'`` reads 0). One such period
+#: is a reversal within it; two or more are a stretch an equation error cannot describe
+#: (:func:`still_periods`).
+MIN_STILL_PERIODS = 2
 
 
 @dataclass(frozen=True)
@@ -163,6 +170,18 @@ def _pass(x: np.ndarray, band: np.ndarray) -> np.ndarray:
 def central_difference(values: np.ndarray, dt_s: float) -> np.ndarray:
     """Central difference quotient (one-sided at the ends), unit of ``values`` per s."""
     return np.gradient(values, dt_s)
+
+
+def still_periods(theta: np.ndarray, least: int = MIN_STILL_PERIODS) -> np.ndarray:
+    """Periods (``θ[n] → θ[n + 1]``, the last sample's none) within a stretch of at least
+    ``least`` consecutive periods over which the angle does not change."""
+    flat = np.append(np.diff(theta) == 0.0, False)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flat.astype(np.int8), [0]])))
+    out = np.zeros(len(theta), dtype=bool)
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        if stop - start >= least:
+            out[start:stop] = True
+    return out
 
 
 def quantization_step(theta: np.ndarray) -> float:

@@ -57,7 +57,7 @@ from stand.diagnosis.model import (
     shifted,
     velocity_sign,
 )
-from stand.diagnosis.signals import Signals
+from stand.diagnosis.signals import Signals, still_periods
 from stand.ident.derivatives import (
     _convolve_valid,
     acceleration_interval_weights,
@@ -107,13 +107,6 @@ SETTLING_AT_START = True
 #: over the period, and the settling's deficit is a share ``1 − w`` of a step (0.04–0.2
 #: on the simulated drives) where the value at the period's start misses a share ``w``.
 RIPPLE_COLUMNS = ("rip_sin", "rip_cos")
-#: A shaft whose encoder reads one angle over at least this many consecutive sample
-#: periods is at rest (held by static friction, which balances whatever torque the drive
-#: makes up to the breakaway level) or turns slower than the encoder resolves: either
-#: way no friction column knows its torque there (``sign θ'`` reads 0). One such period
-#: is a reversal within it (:func:`reversal_lines` places the crossing); two or more are
-#: a stretch the model cannot describe (:func:`still_periods`).
-MIN_STILL_PERIODS = 2
 #: Columns that carry the measured current (and so need an instrument).
 CURRENT_COLUMNS = frozenset({"current", TIMING_COLUMN, RAMP_COLUMN, DRIFT_COLUMN,
                              *RIPPLE_COLUMNS})
@@ -127,22 +120,11 @@ def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
     return 0.5 * (padded[:-2 * lag] + padded[2 * lag:])
 
 
-def still_periods(theta: np.ndarray) -> np.ndarray:
-    """Periods (``θ[n] → θ[n + 1]``, the last sample's none) within a stretch of at least
-    :data:`MIN_STILL_PERIODS` consecutive periods over which the angle does not change."""
-    flat = np.append(np.diff(theta) == 0.0, False)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flat.astype(np.int8), [0]])))
-    out = np.zeros(len(theta), dtype=bool)
-    for start, stop in zip(edges[::2], edges[1::2], strict=True):
-        if stop - start >= MIN_STILL_PERIODS:
-            out[start:stop] = True
-    return out
-
-
 def moving_rows(theta: np.ndarray, half_width: int) -> np.ndarray:
     """Rows of a design of kernel ``half_width`` (``len(θ) − 2·half_width``) whose kernel,
     widened by a period either way for the held columns, meets no still period
-    (:func:`still_periods`): the rows on which the model's friction holds."""
+    (:func:`~stand.diagnosis.signals.still_periods`): the rows on which the model's
+    friction holds."""
     still = np.concatenate([[False], still_periods(theta), [False]]).astype(float)
     reach = np.convolve(still, np.ones(2 * half_width + 3), mode="valid")
     return np.asarray(reach == 0.0)
