@@ -60,9 +60,10 @@ def rest_warning(design: Design) -> list[str]:
     if share <= MAX_REST_SHARE:
         return []
     return [f"the shaft rests (static friction holds it, or it turns slower than the encoder "
-            f"resolves) near {100 * share:.0f} % of the fit's samples, which are left out: "
-            "the friction torque is unknown there; a command that keeps the shaft moving "
-            "(faster reversals, a speed loop that breaks away sooner) gives more data"]
+            f"resolves) within the kernel of {100 * share:.0f} % of the fit's samples, which "
+            "are left out: the friction torque is unknown there; a command that keeps the "
+            "shaft moving (faster reversals, a speed loop that breaks away sooner) gives "
+            "more data"]
 
 
 def run_warnings(run: Run, est: Estimate, notes: list[str]) -> list[str]:
