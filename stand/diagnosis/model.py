@@ -24,7 +24,7 @@ import numpy as np
 from stand.diagnosis import kicks, supply_limit
 from stand.diagnosis.backlash_load import load_state
 from stand.diagnosis.dry_friction import period_mean
-from stand.diagnosis.signals import Signals, still_periods
+from stand.diagnosis.signals import Signals, near_rest
 from stand.errors import InputError, NotExcitedError
 from stand.ident.qmatrix import QSums, solve
 
@@ -430,18 +430,16 @@ def fit_rows(sig: Signals, delay: int) -> np.ndarray:
     """Samples the fit takes: all but ``EDGE_SAMPLES`` at each end (and the delay's last),
     and but those within the filter's reach (:data:`FILTER_REACH_SAMPLES`, and a period
     more for breakaway and stop) of a stretch of the shaft at rest (at least
-    :data:`MIN_REST_PERIODS`, :func:`~stand.diagnosis.signals.still_periods`): static
+    :data:`MIN_REST_PERIODS`, :func:`~stand.diagnosis.signals.near_rest`): static
     friction holds any torque up to its breakaway level there, which no friction
     model's column knows, and a speed loop winding its current up against a stuck shaft
     would pull Kt/J towards zero (the simulation steps the sticking itself,
     :mod:`.dry_friction`)."""
     key = ("fit rows", delay)
     if key not in sig.cache:
-        reach = FILTER_REACH_SAMPLES + 1
-        still = np.convolve(still_periods(sig.theta, MIN_REST_PERIODS).astype(float),
-                            np.ones(2 * reach + 1), mode="same")
+        near = near_rest(sig.theta, FILTER_REACH_SAMPLES + 1, MIN_REST_PERIODS)
         rows = np.arange(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - delay)
-        sig.cache[key] = rows[still[rows] == 0.0]
+        sig.cache[key] = rows[~near[rows]]
     return sig.cache[key]
 
 

@@ -184,6 +184,14 @@ def still_periods(theta: np.ndarray, least: int = MIN_STILL_PERIODS) -> np.ndarr
     return out
 
 
+def near_rest(theta: np.ndarray, reach: int, least: int = MIN_STILL_PERIODS) -> np.ndarray:
+    """Samples within ``reach`` periods of a still period (:func:`still_periods` of
+    ``least``): those whose filter of that reach on either side meets the shaft at rest
+    (bool, one per sample)."""
+    still = still_periods(theta, least).astype(float)
+    return np.asarray(np.convolve(still, np.ones(2 * reach + 1), mode="same") > 0.0)
+
+
 def quantization_step(theta: np.ndarray) -> float:
     """The encoder count: the largest step on whose grid (nearly) every position lies,
     0 if the position is not quantized. The smallest distance between two positions

@@ -57,7 +57,7 @@ from stand.diagnosis.model import (
     shifted,
     velocity_sign,
 )
-from stand.diagnosis.signals import Signals, still_periods
+from stand.diagnosis.signals import Signals, near_rest
 from stand.ident.derivatives import (
     _convolve_valid,
     acceleration_interval_weights,
@@ -123,11 +123,9 @@ def lagged_mean(values: np.ndarray, lag: int) -> np.ndarray:
 def moving_rows(theta: np.ndarray, half_width: int) -> np.ndarray:
     """Rows of a design of kernel ``half_width`` (``len(θ) − 2·half_width``) whose kernel,
     widened by a period either way for the held columns, meets no still period
-    (:func:`~stand.diagnosis.signals.still_periods`): the rows on which the model's
+    (:func:`~stand.diagnosis.signals.near_rest`): the rows on which the model's
     friction holds."""
-    still = np.concatenate([[False], still_periods(theta), [False]]).astype(float)
-    reach = np.convolve(still, np.ones(2 * half_width + 3), mode="valid")
-    return np.asarray(reach == 0.0)
+    return ~near_rest(theta, half_width + 1)[half_width:len(theta) - half_width]
 
 
 #: Points of the search for the crossing within a period (:func:`reversal_lines`).
