@@ -22,6 +22,15 @@ the samples; it is the period's own mean, so the nominal model takes it as held 
 the period (input weight 0) instead of a reconstruction of the samples. Where the law
 does not hold (a loop that saturates its voltage, another control law, a target that
 changes at every sample), the sampled current stays and a note says why.
+
+What the two runs tell of the drive is pooled (:func:`_pooled`): a current limit one
+run's samples show clips the other's kicks too, and both take the precision-weighted
+mean of the lags between the law's command and the drive's current their fits give. The law's current
+also carries its shape within each period (``Signals.current_shape``: a kick's current
+comes early in its period and moves the angle more than its mean says), which the free
+run puts into the angle (:mod:`.simulate`), and the lag's change of current and shape
+(``Signals.lag_slopes``), with which the models may refine the lag
+(``ModelSpec.lag``).
 """
 
 from __future__ import annotations
@@ -31,7 +40,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stand.diagnosis.signals import Signals
-from stand.ident.speed_loop import TARGET_COLUMN, speed_loop, tracking_errors
+from stand.ident.speed_loop import (
+    TARGET_COLUMN,
+    SpeedLoop,
+    lag_slopes,
+    speed_loop,
+    tracking_errors,
+)
 from stand.runfile import Run
 
 
@@ -50,20 +65,26 @@ class LoopInput:
         The current comes from the PI speed law.
     note : str
         What was done with a speed-loop run, in words ("" for a run without a target).
+    lag_sd_s : float
+        Standard error of the drive's lag in the law's current, s (infinite where none).
     """
 
     signals: Signals
     sampled: Signals
     from_law: bool
     note: str = ""
+    lag_sd_s: float = np.inf
 
 
-def loop_input(run: Run, sig: Signals) -> LoopInput:
+def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInput:
     """``sig`` (prepared from ``run``) driven by the speed loop's current where ``run``
     holds its speed target and the PI law holds; else the sampled current, with the
     target's changes (``target_change``, whose kicks the models may carry:
-    :mod:`.kicks`) where the run holds its target, ``sig`` unchanged where not."""
-    loop = speed_loop(run)
+    :mod:`.kicks`) where the run holds its target, ``sig`` unchanged where not.
+    ``loop`` is the run's fitted loop (:func:`~stand.ident.speed_loop.speed_loop`,
+    fitted here if not given)."""
+    if loop is None:
+        loop = speed_loop(run)
     if loop is None:
         return LoopInput(sig, sig, False)
     # the sampled current with the target's changes, whose kicks the input
@@ -86,7 +107,10 @@ def loop_input(run: Run, sig: Signals) -> LoopInput:
             f"explaining the sampled current to {loop.residual_ratio:.2g} times its noise"
             + (f", its integrator fitted anew after each of {loop.resets} stretches at the "
                "current limit (the drive's anti-windup)" if loop.resets else ""))
-    return LoopInput(replace(sig, current=current, loop_parts=parts, cache={}), sig, True, note)
+    shape = _late(loop.period_shape, loop.delay)
+    slopes = np.stack([_late(row, loop.delay) for row in lag_slopes(loop.command)])
+    return LoopInput(replace(sig, current=current, loop_parts=parts, current_shape=shape,
+                             lag_slopes=slopes, cache={}), sig, True, note, loop.lag_sd)
 
 
 def _late(values: np.ndarray, delay: int) -> np.ndarray:
@@ -104,7 +128,8 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
         return (LoopInput(tr, tr, False, "the speed target is recorded in one run only: "
                           "both are driven by the sampled current"),
                 LoopInput(ho, ho, False))
-    first, second = loop_input(train, tr), loop_input(holdout, ho)
+    first, second = (loop_input(run, sig, loop) for run, sig, loop
+                     in zip((train, holdout), (tr, ho), _pooled(train, holdout), strict=True))
     if first.from_law == second.from_law:
         return first, second
     refused = first.note if not first.from_law else second.note
@@ -112,6 +137,37 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
             LoopInput(second.sampled, second.sampled, False,
                       "the PI speed law holds on one run only: both are driven by the "
                       "sampled current"))
+
+
+def _pooled(train: Run, holdout: Run) -> tuple[SpeedLoop | None, SpeedLoop | None]:
+    """The two runs' speed loops with what they tell of the drive pooled where both hold.
+
+    * A current limit one run's samples show is the other's too: there it clips kicks
+      that reach it within a period and have left it by the next sample.
+    * Each takes the mean of the drive's lags both fits give, weighted by their
+      precision: one run's fit of it can be off by tens of percent (a run of small
+      kicks), and on a kick of a few amperes a percent of the lag is a
+      milliampere-second.
+    """
+    runs = (train, holdout)
+    first, second = (speed_loop(run) for run in runs)
+    if first is None or second is None or not (first.holds and second.holds):
+        return first, second
+    loops = [first, second]
+    limits = [loop.limit_A for loop in loops]
+    if np.isfinite(min(limits)) and not np.isfinite(max(limits)):
+        for k, run in enumerate(runs):
+            if np.isinf(loops[k].limit_A):
+                refit = speed_loop(run, min(limits))
+                assert refit is not None  # the run holds its target
+                loops[k] = refit
+    fitted = [loop for loop in loops if loop.holds and loop.lag_s > 0 and loop.lag_sd > 0]
+    if len(fitted) < len(loops):
+        return loops[0], loops[1]
+    weights = np.array([loop.lag_sd ** -2.0 for loop in fitted])
+    lag = float(np.sum(weights * [loop.lag_s for loop in fitted]) / np.sum(weights))
+    sd = float(np.sum(weights) ** -0.5)
+    return loops[0].relagged(lag, train.dt_s, sd), loops[1].relagged(lag, holdout.dt_s, sd)
 
 
 __all__ = ["LoopInput", "loop_input", "loop_inputs"]

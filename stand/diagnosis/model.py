@@ -114,6 +114,11 @@ class ModelSpec:
     #: ``supply_<class>`` fitted with the others; empty: none). Picked with
     #: ``input_weight`` on TRAIN, like ``kicks``.
     supply: tuple[str, ...] = ()
+    #: Whether the error of the drive's lag in a speed law's current (fitted on each run
+    #: by the law, :mod:`stand.ident.speed_loop`) is refined with the model: column
+    #: ``lag``, the current's change per share of a period of lag
+    #: (``Signals.lag_slopes``). Picked on TRAIN with the law's current.
+    lag: bool = False
 
     def names(self) -> list[str]:
         """Names of the input columns ``u`` (``current`` first)."""
@@ -133,6 +138,8 @@ class ModelSpec:
         if self.kicks:
             out += list(KICK_COLUMNS)
         out += [f"supply_{name}" for name in self.supply]
+        if self.lag:
+            out.append("lag")
         return out
 
     def merged(self, other: ModelSpec) -> ModelSpec:
@@ -148,7 +155,7 @@ class ModelSpec:
             backlash_restitution=(other.backlash_restitution if other.backlash_gap is not None
                                   else self.backlash_restitution),
             input_weight=self.input_weight, spring=self.spring,
-            kicks=self.kicks, supply=self.supply,
+            kicks=self.kicks, supply=self.supply, lag=self.lag,
         )
 
 
@@ -201,6 +208,17 @@ def interval_current(current: np.ndarray, weight: float) -> np.ndarray:
 DIFFERENCE_KERNEL = (0.125, 0.375, 0.375, 0.125)
 
 
+def bend_at_samples(shape: np.ndarray) -> np.ndarray:
+    """What a current's shape within its periods (its ramp-weighted mean above its mean,
+    ``Signals.current_shape``) gives at the sample instants in the acceleration
+    estimate, per unit of the current's gain: it moves the angle by ``(Δt²/2)·shape`` at
+    each period's end, of which the second central difference over ±2 samples reads
+    ``(s[n] + s[n + 1] − s[n − 1] − s[n − 2])/8``."""
+    padded = np.concatenate([shape[:1], shape[:1], shape, shape[-1:]])
+    n = len(shape)
+    return (padded[2:2 + n] + padded[3:3 + n] - padded[1:1 + n] - padded[:n]) / 8.0
+
+
 def at_samples(per_interval: np.ndarray) -> np.ndarray:
     """What a torque held at ``per_interval[n]`` over each period ``n .. n + 1`` gives at
     the sample instants in the acceleration estimate (:data:`DIFFERENCE_KERNEL`)."""
@@ -227,7 +245,24 @@ def period_current(model: FittedModel, sig: Signals) -> np.ndarray:
         shares = np.array([model.coef[f"supply_{name}"] for name in spec.supply])
         current = (current + supply_basis(sig, spec.delay, spec.supply) @ shares
                    / model.coef["current"])
+    if spec.lag:
+        current = current + lag_share(model) * interval_current(lag_slope(sig, spec, 0),
+                                                                spec.input_weight)
     return current
+
+
+def lag_share(model: FittedModel) -> float:
+    """The share of a period by which ``model`` corrects the drive's lag in the speed
+    law's current (0 without the ``lag`` column)."""
+    return model.coef.get("lag", 0.0) / model.coef["current"]
+
+
+def lag_slope(sig: Signals, spec: ModelSpec, row: int) -> np.ndarray:
+    """Row ``row`` of ``sig.lag_slopes`` (0: the current's, 1: its shape's), shifted by
+    ``spec``'s delay as the current is."""
+    if sig.lag_slopes is None:
+        raise InputError(f"{sig.source}: no speed law's current, so no lag to refine")
+    return shifted(sig.lag_slopes[row], spec.delay)
 
 
 def kick_basis(sig: Signals) -> np.ndarray:
@@ -321,7 +356,8 @@ def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
         return (name, spec.delay)
     current = (spec.delay, spec.input_weight)
     return {
-        "current": ("current", *current), "one": ("one",), "sign": ("sign",),
+        "current": ("current", *current), "lag": ("lag", *current), "one": ("one",),
+        "sign": ("sign",),
         "stribeck": ("stribeck", spec.stribeck_ws), "cog_sin": ("cog_sin", spec.cogging_N),
         "cog_cos": ("cog_cos", spec.cogging_N), "rip_sin": ("rip_sin", spec.ripple_N, *current),
         "rip_cos": ("rip_cos", spec.ripple_N, *current),
@@ -333,7 +369,13 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
     """Unfiltered input column ``name`` of ``spec`` on the measured run ``sig``."""
     theta = sig.theta_f
     if name == "current":
-        return sample_current(shifted(sig.current, spec.delay), spec.input_weight)
+        column = sample_current(shifted(sig.current, spec.delay), spec.input_weight)
+        if sig.current_shape is not None:
+            column = column + bend_at_samples(shifted(sig.current_shape, spec.delay))
+        return column
+    if name == "lag":
+        return (sample_current(lag_slope(sig, spec, 0), spec.input_weight)
+                + bend_at_samples(lag_slope(sig, spec, 1)))
     if name in KICK_COLUMNS:
         return at_samples(kick_basis(sig)[:, KICK_COLUMNS.index(name)])
     if name in SUPPLY_COLUMNS:
@@ -600,7 +642,8 @@ def nominal() -> ModelSpec:
 
 
 __all__ = ["KICK_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
-           "fit", "fit_residual_batch", "interval_current", "kick_basis", "nominal",
+           "fit", "fit_residual_batch", "interval_current", "kick_basis", "lag_share",
+           "lag_slope", "nominal",
            "period_current", "supply_basis", "supply_classes", "supply_within_period",
            "periodic_column", "periodic_mean",
            "regressors", "shifted", "velocity_resolution", "velocity_sign"]

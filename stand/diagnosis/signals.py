@@ -82,6 +82,16 @@ class Signals:
     #: proportional and integral parts over each period (samples × 2, A), whose gains'
     #: errors the shape tests take as nuisance; None otherwise.
     loop_parts: np.ndarray | None = None
+    #: Under a speed loop whose law drives the models: how much the law's current's
+    #: ramp-weighted mean over each period exceeds its mean (A, on the samples' timeline
+    #: like ``current``; :attr:`stand.ident.speed_loop.SpeedLoop.period_shape`), which the
+    #: free run puts into the angle (:mod:`.simulate`); None otherwise (a current held over
+    #: the period).
+    current_shape: np.ndarray | None = None
+    #: With ``current_shape``: how ``current`` and ``current_shape`` change per share of
+    #: a period of the drive's lag (2 × samples, A; :func:`stand.ident.speed_loop.
+    #: lag_slopes`), whose error the models may take up (``ModelSpec.lag``).
+    lag_slopes: np.ndarray | None = None
     #: Under a speed loop whose run holds its target (``speed_target_rad_s``): the
     #: target's change at the start of each period, ``r[n] − r[n − 1]`` (rad/s), whose
     #: kicks of the current between samples the input reconstruction may carry

@@ -30,8 +30,11 @@ from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
     FittedModel,
+    lag_share,
+    lag_slope,
     period_current,
     periodic_mean,
+    shifted,
     velocity_resolution,
 )
 from stand.diagnosis.signals import Signals
@@ -86,18 +89,29 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     dt = sig.dt_s
     current = period_current(model, sig)
     first = seg.starts - 1
-    drive = current[first[:, None] + np.arange(seg.horizon + 1)[None, :]]
+    periods = first[:, None] + np.arange(seg.horizon + 1)[None, :]
+    drive = current[periods]
+    # the angle's share of a current that is not held over its period (its ramp-weighted
+    # mean above its mean, a kick's early current): (Δt²/2)·(Kt/J)·shape
+    bend = None
+    if sig.current_shape is not None:
+        shape = shifted(sig.current_shape, spec.delay)
+        if spec.lag:
+            shape = shape + lag_share(model) * lag_slope(sig, spec, 1)
+        bend = 0.5 * dt * dt * model.coef["current"] * shape[periods]
     step = _Stepper(model, sig)
     anchor = _State(sig.theta_f[first].copy(), sig.omega_meas[first].copy())
     if spec.backlash_gap is not None:
         tl, wl = load_state(sig, spec.backlash_gap, spec.backlash_restitution)
         anchor.theta_l, anchor.omega_l = tl[first].copy(), wl[first].copy()
-    _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first])
-    theta = _positions(step, anchor, drive)
+    _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first],
+           None if bend is None else bend[:, :2])
+    theta = _positions(step, anchor, drive, bend)
     return (theta[:, 2:] - theta[:, :-2]) / (2.0 * dt)
 
 
-def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray) -> None:
+def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray,
+           bend: np.ndarray | None) -> None:
     """Set ``anchor.omega`` so the model travels ``travel`` (rad) over the sample periods
     of ``drive`` (Newton steps, the slope by a finite difference). Where the model
     barely responds to its start speed (a shaft held by friction), the slope of the
@@ -106,22 +120,26 @@ def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray
     linear = span * _phi1(step.model.c_omega * span)
     delta = max(1e-6, 1e-3 * step.sig.top_speed)
     for _ in range(SHOOTING_STEPS):
-        reach = _positions(step, anchor, drive)[:, -1] - anchor.theta
+        reach = _positions(step, anchor, drive, bend)[:, -1] - anchor.theta
         nudged = anchor.copy()
         nudged.omega = anchor.omega + delta
-        slope = (_positions(step, nudged, drive)[:, -1] - nudged.theta - reach) / delta
+        slope = (_positions(step, nudged, drive, bend)[:, -1] - nudged.theta - reach) / delta
         slope = np.where(slope > 0.1 * linear, slope, linear)
         anchor.omega = anchor.omega + (travel - reach) / slope
 
 
-def _positions(step: _Stepper, anchor: _State, drive: np.ndarray) -> np.ndarray:
+def _positions(step: _Stepper, anchor: _State, drive: np.ndarray,
+               bend: np.ndarray | None = None) -> np.ndarray:
     """Positions of the model from ``anchor`` (column 0) at the end of each sample period
-    of ``drive``, shape (segments, periods + 1), rad."""
+    of ``drive``, shape (segments, periods + 1), rad; ``bend`` is added to the angle at
+    the end of each period (rad: a current not held over its period)."""
     st = anchor.copy()
     theta = np.empty((len(st.theta), drive.shape[1] + 1))
     theta[:, 0] = st.theta
     for j in range(drive.shape[1]):
         step.sample(st, drive[:, j])
+        if bend is not None:
+            st.theta = st.theta + bend[:, j]
         theta[:, j + 1] = st.theta
     return theta
 

@@ -32,18 +32,26 @@ run this is indistinguishable from inertia. When the run holds the target
   ki·Δt/2·(r_n − ω̄_n)`` with ``ω̄_n = (θ_{n+1} − θ_n)/Δt``, the period's exact mean speed.
   It needs no instantaneous speed and carries no current-sensor noise. Within a period
   whose start goes beyond the current limit the law is clipped at it.
-
-What the reconstruction leaves out is the drive's own delay between speed and current
-(its current loop's lag, the speed loop's computation): the samples read
-``i ≈ i_cmd − τ·i_cmd'``, which inflates the fitted ``kp`` by about ``2π·f_loop·τ``.
-The gains are also fitted with a lag term (the acceleration as a column); on the
-loop's exponential transients lag and gain trade off, so the difference between the
-two fits enters the uncertainty of Kt/J.
+- **The drive's lag.** The drive follows the law's command with its own lag ``τ``
+  (current loop, computation): the samples read ``i ≈ i_cmd − τ·i_cmd'``, which
+  inflates a fitted ``kp`` by about ``2π·f_loop·τ``. The gains are therefore also fitted
+  with a lag term (the acceleration as a column), which gives ``τ``; on the loop's
+  exponential transients lag and gain trade off, so the difference between the two
+  fits enters the uncertainty of Kt/J. Over a period the lag acts as a delay of ``τ``:
+  the current's mean is the command's over ``[t_n − τ, t_{n+1} − τ]``, the law's mean
+  less ``τ/Δt`` times the command's change from the end of the period before to the end
+  of this one, whose largest part is the kick ``kp·Δr`` at its start (:func:`_lagged`).
+  Left out, each kick carried ``τ/Δt`` too much current into its own period (8 % at
+  0.2 ms and 2.5 ms), and a free run drifted by it at every target change.
+- **The current's shape within a period.** A kick's current comes early in its period
+  and moves the angle more than its mean says: the angle takes the current's
+  ramp-weighted mean (``period_shape`` is its excess over the mean), which a simulation
+  between samples needs (:mod:`stand.diagnosis.simulate`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -110,6 +118,19 @@ class SpeedLoop:
     resets : int
         Stretches at the current limit after which the integrator's state was fitted
         anew (the drive's anti-windup, :func:`_with_resets`); 0 for one constant.
+    lag_s : float
+        The drive's lag between the law's command and its current (``τ``), s, by which
+        the period current is delayed; 0 where the fit gives none.
+    lag_sd : float
+        Standard error of the fitted lag, s (infinite where there is none).
+    period_shape : ndarray
+        How much the current's ramp-weighted mean over each period (``2/Δt²·∫(Δt − s)·
+        i(s)·ds``, what the angle takes of it) exceeds its mean, A: a kick's current
+        early in its period moves the angle more than its mean says.
+    command : ndarray
+        The law's command, clipped, over each period before the drive's lag, shape
+        (3, samples): its mean, its ramp-weighted mean and its value at the period's end
+        (A; :func:`_command`), from which :meth:`relagged` delays it anew.
     """
 
     kp: float
@@ -122,6 +143,20 @@ class SpeedLoop:
     message: str = ""
     limit_A: float = np.inf
     resets: int = 0
+    lag_s: float = 0.0
+    lag_sd: float = np.inf
+    period_shape: np.ndarray = field(default_factory=lambda: np.empty(0))
+    command: np.ndarray = field(default_factory=lambda: np.empty((3, 0)))
+
+    def relagged(self, lag_s: float, dt: float, lag_sd: float = np.inf) -> SpeedLoop:
+        """This loop with the drive's lag ``lag_s`` (s, of standard error ``lag_sd``;
+        ``dt``: the sample period) in its period current instead of its own fit's (e.g.
+        the lag of another run's fit of the same drive pooled with it)."""
+        if not self.holds:
+            return self
+        period, shape = _lagged(self.command, lag_s / dt)
+        return replace(self, lag_s=lag_s, lag_sd=lag_sd, period_current=period,
+                       period_shape=shape)
 
     @property
     def saturates(self) -> bool:
@@ -183,7 +218,8 @@ def tracking_errors(theta: np.ndarray, target: np.ndarray,
 
 
 def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
-                   dt: float, quant_rad: float = 0.0, trim: bool = False) -> SpeedLoop:
+                   dt: float, quant_rad: float = 0.0, trim: bool = False,
+                   known_limit_A: float = np.inf) -> SpeedLoop:
     """Fit the PI law to a speed-mode run and reconstruct the current over each period.
 
     Parameters
@@ -204,6 +240,10 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         ``TRIM_SIGMAS`` of their noise (repeated until none is left out): samples within
         a stretch where the drive's voltage saturates, when the law is wanted only as
         the start of a simulation that models that (:mod:`stand.ident.closed_loop`).
+    known_limit_A : float
+        The drive's current limit where another run of it shows one, A: where this run's
+        samples do not (a kick that reaches it within a period and has left it by the
+        next sample), the law's current is clipped there too.
     """
     n = len(theta)
     sigma = noise_sigma(current)
@@ -225,7 +265,7 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
                   "too few samples away from the current limit")
         return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
                          f"{reason}: the speed loop's gains cannot be fitted")
-    limit_A = limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
+    limit_A = limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else known_limit_A
     if law.kp > 0 and law.ratio <= MAX_RESIDUAL_RATIO:
         return law.loop(-limit_A, limit_A, limit_A)
     if not trim:
@@ -341,14 +381,14 @@ class _Rows:
         label (of the current sample), at the delay of ``delays`` (default 0 …
         ``MAX_DELAY``) that fits best; None where too few samples are left."""
         n = len(self.theta)
-        best: tuple[float, int, np.ndarray, np.ndarray] | None = None
+        best: tuple[float, int, np.ndarray, np.ndarray, np.ndarray] | None = None
         for delay in range(MAX_DELAY + 1) if delays is None else delays:
             rows = np.flatnonzero(self.keep[:n - delay] & ~at_limit[delay:])
             if len(rows) < MIN_ROWS:
                 continue
             if trim:
                 rows = self._trimmed(rows, delay, segment)
-            lagged, _, mean_square = self._weighted(rows, delay, segment, True)
+            lagged, A_lag, mean_square = self._weighted(rows, delay, segment, True)
             # a longer delay must fit better beyond the sampling error of a mean square
             # (relative standard deviation √(2/rows)), else the shorter one stays; trimmed,
             # it must also explain as many samples (a drive whose supply slows the current
@@ -357,14 +397,15 @@ class _Rows:
             if best is None or (
                     mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / len(rows)))
                     and (not trim or len(rows) >= len(best[2]))):
-                best = (mean_square, delay, rows, lagged)
+                best = (mean_square, delay, rows, lagged, A_lag)
         if best is None:
             return None
-        lag_square, delay, rows, lagged = best
+        lag_square, delay, rows, lagged, A_lag = best
         plain, A, mean_square = self._weighted(rows, delay, segment, False)
         labels = np.unique(segment[rows + delay])
         return _Law(self, delay, segment, labels, plain, lagged, A, mean_square,
-                    float(np.sqrt(lag_square)))
+                    float(np.sqrt(lag_square)),
+                    np.linalg.pinv(A_lag.T @ A_lag) * lag_square)
 
     def columns(self, rows: np.ndarray, delay: int, segment: np.ndarray,
                 lag: bool) -> np.ndarray:
@@ -405,7 +446,8 @@ class _Law:
     """The PI law fitted at one delay: ``plain`` is ``[kp, ki, c…]`` (a constant per
     segment label in ``labels``), ``lagged`` the same with the acceleration's coefficient
     last (the drive's lag); ``A`` and ``mean_square`` are the plain fit's weighted
-    design and residual mean square, ``ratio`` the lagged fit's RMS over the noise."""
+    design and residual mean square, ``ratio`` the lagged fit's RMS over the noise and
+    ``lag_cov`` its covariance."""
 
     rows: _Rows
     delay: int
@@ -416,6 +458,7 @@ class _Law:
     A: np.ndarray
     mean_square: float
     ratio: float
+    lag_cov: np.ndarray
 
     @property
     def kp(self) -> float:
@@ -437,14 +480,19 @@ class _Law:
         return constants[np.clip(k, 0, len(self.labels) - 1)]
 
     def beyond(self, at_side: np.ndarray, level: float) -> int:
-        """How many samples of ``at_side`` whose speed the law can use it (with the lag)
-        puts beyond ``level`` (a magnitude, A) by ``LIMIT_SIGMAS`` of the noise."""
+        """How many more samples of ``at_side`` whose speed the law can use it (with the
+        lag) puts beyond ``level`` (a magnitude, A) by ``LIMIT_SIGMAS`` of the noise than
+        short of it by as much. At a limit the law asks for more than the drive gives at
+        the samples held there, and never for less; at the largest currents of a loop
+        that reaches no limit (a current noise of a milliampere, the law's own small
+        errors at the peaks), it misses them by as much either way."""
         r, n = self.rows, len(at_side)
         rows = np.flatnonzero(r.keep[:n - self.delay] & at_side[self.delay:])
         b = self.lagged
         law = (b[0] * r.error[rows] + b[1] * r.error_int[rows]
                + self.constant_at(rows + self.delay, b[2:-1]) + b[-1] * r.alpha[rows])
-        return int(np.sum(np.abs(law) > level + LIMIT_SIGMAS * r.sigma))
+        margin = LIMIT_SIGMAS * r.sigma
+        return int(np.sum(np.abs(law) > level + margin) - np.sum(np.abs(law) < level - margin))
 
     def loop(self, low: float, high: float, limit_A: float,
              sides: list[np.ndarray] | None = None) -> SpeedLoop:
@@ -467,48 +515,103 @@ class _Law:
         rel_sd = float(np.hypot(np.sqrt(cov[0, 0]) / kp, (kp_other - kp) / kp))
         shown = np.minimum(np.arange(n - 1) + self.delay, n - 1)
         c = self.constant_at(shown, constants)
-        period = _period_current(r.theta, r.target, r.omega, r.error_int, r.dt, kp, ki, c,
-                                 low, high)
+        # a lag the fit cannot give (negative, or a period or more: the delay's) is none
+        lag_s = tau if 0.0 < tau < r.dt else 0.0
+        # its standard error (τ = b_α/b_kp, to first order)
+        grad = np.zeros(len(lagged))
+        grad[0], grad[-1] = -tau / lagged[0], 1.0 / lagged[0]
+        lag_sd = float(np.sqrt(max(grad @ self.lag_cov @ grad, 0.0))) if lag_s else np.inf
+        command = _command(r.theta, r.target, r.omega, r.error_int, r.dt, kp, ki, c,
+                           low, high)
         if sides is not None:
             ends = np.minimum(shown + 1, n - 1)
             for side, level in zip(sides, (low, high), strict=True):
                 held = np.append(side[shown] & side[ends], False)
-                period[held] = level
+                command[:, held] = level
+        period, shape = _lagged(command, lag_s / r.dt)
         return SpeedLoop(kp, ki, float(constants[0]), self.delay, self.ratio, rel_sd, period,
-                         limit_A=limit_A, resets=self.resets)
+                         limit_A=limit_A, resets=self.resets, lag_s=lag_s, lag_sd=lag_sd,
+                         period_shape=shape, command=command)
 
 
-def _period_current(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,
-                    error_int: np.ndarray, dt: float, kp: float, ki: float, c: np.ndarray,
-                    low: float, high: float) -> np.ndarray:
-    """Mean of the law's current over the period after each sample (``c``: the constant
-    of each period), clipped to ``[low, high]`` (the last period repeats the one before).
+def _command(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,
+             error_int: np.ndarray, dt: float, kp: float, ki: float, c: np.ndarray,
+             low: float, high: float) -> np.ndarray:
+    """The law's command over the period after each sample (``c``: the constant of each
+    period), clipped to ``[low, high]``: its mean, its ramp-weighted mean and its value
+    at the period's end, shape (3, samples), A (the last period repeats the one before).
 
-    Unclipped, the mean is exact from the period's mean speed. Where the law's current
-    at a period's start is beyond a limit, the speed within the period is taken as the
-    quadratic through the speeds at its ends and its mean, and the law's current on
-    ``SUBSTEPS`` points of it is clipped and averaged.
+    The speed within a period is the quadratic through the speeds at its ends and its
+    mean ``ω̄`` (:func:`_sample_speeds`). Unclipped, the mean is exact from ``ω̄`` and
+    the ramp-weighted mean is ``kp`` times the quadratic's ``ω̄ + (ω₀ − ω₁)/6`` below the
+    target (the integrator's growth, a ramp, enters both). Where the law's current at a
+    period's start or end is beyond a limit, the law's current on ``SUBSTEPS`` points of
+    the quadratic is clipped and both means are taken of it.
     """
     mean_speed = np.diff(theta) / dt
     r = target[:-1]
-    period = kp * (r - mean_speed) + c + ki * error_int[:-1] + ki * dt / 2 * (r - mean_speed)
-    start = kp * (r - omega[:-1]) + c + ki * error_int[:-1]
-    w0, w1 = omega[:-1], omega[1:]
-    for k in np.flatnonzero(np.isfinite(w0) & np.isfinite(w1) & ((start > high) | (start < low))):
-        s = (np.arange(SUBSTEPS) + 0.5) / SUBSTEPS
-        # quadratic ω(s) with ω(0) = w0, ω(1) = w1 and mean ω̄
+    w0, w1 = _sample_speeds(target, mean_speed, omega)
+    base = c + ki * error_int[:-1]
+    growth = ki * dt * (r - mean_speed)
+    mean = kp * (r - mean_speed) + base + growth / 2
+    ramp = mean - kp * (w0 - w1) / 6 - growth / 6
+    start = kp * (r - w0) + base
+    end = kp * (r - w1) + c + ki * error_int[1:]
+    s = (np.arange(SUBSTEPS) + 0.5) / SUBSTEPS
+    for k in np.flatnonzero((np.maximum(start, end) > high) | (np.minimum(start, end) < low)):
         b2 = 3 * (w0[k] + w1[k]) - 6 * mean_speed[k]
         speed = w0[k] + (w1[k] - w0[k] - b2) * s + b2 * s**2
         drift = ki * dt * np.cumsum(r[k] - speed) / SUBSTEPS
-        law = kp * (r[k] - speed) + c[k] + ki * error_int[k] + drift
-        period[k] = float(np.mean(np.clip(law, low, high)))
-    return np.concatenate([period, period[-1:]])
+        law = np.clip(kp * (r[k] - speed) + base[k] + drift, low, high)
+        mean[k], ramp[k] = float(np.mean(law)), float(2 * np.mean((1 - s) * law))
+    command = np.stack([mean, ramp, np.clip(end, low, high)])
+    return np.concatenate([command, command[:, -1:]], axis=1)
 
 
-def speed_loop(run: Run) -> SpeedLoop | None:
-    """The PI loop of ``run`` when it holds the speed target, else None."""
+def _sample_speeds(target: np.ndarray, mean_speed: np.ndarray,
+                   omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The speed at the start and at the end of each period (rad/s): the angle's
+    kink-free derivative where it has one (:func:`kink_free_derivatives`), else the
+    mean of the two periods around the sample, or, where the target changes at that
+    sample, the period before carried on by its change from the one before it (the
+    kick bends the speed there: the period after says nothing of the speed before)."""
+    centred = np.append((mean_speed[:-1] + mean_speed[1:]) / 2, mean_speed[-1])
+    left = mean_speed + np.diff(mean_speed, prepend=mean_speed[0]) / 2
+    estimate = np.where(np.diff(target) != 0, left, centred)   # at each period's end
+    at_end = np.where(np.isfinite(omega[1:]), omega[1:], estimate)
+    at_start = np.where(np.isfinite(omega[:-1]), omega[:-1],
+                        np.insert(estimate[:-1], 0, mean_speed[0]))
+    return at_start, at_end
+
+
+def lag_slopes(command: np.ndarray) -> np.ndarray:
+    """How the current over each period and its shape (A) change per share of a period
+    of the drive's lag (:func:`_lagged` is linear in it), shape (2, samples)."""
+    mean, _, end = command
+    before = np.insert(end[:-1], 0, mean[0])
+    return np.stack([before - end, 2 * (before - mean) + (end - before)])
+
+
+def _lagged(command: np.ndarray, share: float) -> tuple[np.ndarray, np.ndarray]:
+    """The current over each period and its shape (:attr:`SpeedLoop.period_shape`), A,
+    from the law's ``command`` (:func:`_command`) delayed by ``share`` of a period.
+
+    The drive's lag acts as a delay of ``τ``: the current over a period is the command
+    over ``[t_n − τ, t_{n+1} − τ]``. To first order in ``τ/Δt`` its mean loses
+    ``τ/Δt`` of the command's change from the end of the period before to this one's end
+    (the kick ``kp·Δr`` at the start its largest part), and its ramp-weighted mean,
+    which weighs the period's start twice, gains ``2·τ/Δt`` of the step from the end of
+    the period before to this one's mean."""
+    mean, ramp, _ = command
+    slopes = lag_slopes(command)
+    return mean + share * slopes[0], ramp - mean + share * slopes[1]
+
+
+def speed_loop(run: Run, known_limit_A: float = np.inf) -> SpeedLoop | None:
+    """The PI loop of ``run`` when it holds the speed target, else None
+    (``known_limit_A``: :func:`fit_speed_loop`'s)."""
     if TARGET_COLUMN not in run:
         return None
     theta = run["position_rad"]
     return fit_speed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
-                          quantization_step(theta))
+                          quantization_step(theta), known_limit_A=known_limit_A)

@@ -14,7 +14,7 @@ import pytest
 
 from stand.diagnosis import diagnose
 from stand.diagnosis.engine import compare_on_holdout
-from stand.diagnosis.loop_input import loop_input
+from stand.diagnosis.loop_input import loop_input, loop_inputs
 from stand.diagnosis.model import fit
 from stand.diagnosis.signals import prepare
 from stand.diagnosis.simulate import segments
@@ -91,6 +91,26 @@ def test_effect_free_speed_loop_runs_are_none(loop_runs: tuple[Run, Run]) -> Non
     result = diagnose(*loop_runs)
     assert result.verdict == "none", (result.verdict, result.notes)
     assert any("PI speed loop's current" in note for note in result.notes)
+
+
+def test_a_current_limit_one_run_shows_clips_the_kicks_of_the_other() -> None:
+    # A 20 Hz loop whose drive stops its current at 3.5 A. TRAIN reverses between
+    # ±40 rad/s: each kick (kp·80 rad/s ≈ 4 A) passes the limit early in its period and
+    # is back under it by the next sample, which never shows it; HOLDOUT, at ±60 rad/s,
+    # holds it for samples. Both runs' laws take the limit HOLDOUT shows (and the drive's
+    # lag, pooled): TRAIN's law no longer asks for more than the drive gives, and the
+    # effect-free pair is `none` (before: the gap of 1.2 % was `unexplained`).
+    train = speed_run(20.0, current_limit_A=3.5, seed=3, amplitude=40.0)[0]
+    holdout = speed_run(20.0, current_limit_A=3.5, seed=4, amplitude=60.0)[0]
+    alone = speed_loop(train)
+    assert alone is not None and alone.holds and not alone.saturates
+    pooled, _ = loop_inputs(train, holdout, prepare(train), prepare(holdout))
+    assert pooled.from_law
+    # the kicks' periods: 3.43 A alone, 3.25 A clipped
+    peak = float(np.max(np.abs(pooled.signals.current)))
+    assert peak < float(np.max(np.abs(alone.period_current))) - 0.1
+    result = diagnose(train, holdout)
+    assert result.verdict == "none", (result.verdict, result.notes)
 
 
 def _speed_sine(seed: int, amplitude: float) -> Run:
