@@ -208,25 +208,30 @@ def interval_current(current: np.ndarray, weight: float) -> np.ndarray:
 DIFFERENCE_KERNEL = (0.125, 0.375, 0.375, 0.125)
 
 
+#: Weights of the same four periods for an angle moved at each period's end (a current's
+#: shape within the period, ``Signals.current_shape``): the second central difference
+#: over ±2 samples reads ``(s[n] + s[n + 1] − s[n − 1] − s[n − 2])/8`` of it.
+BEND_KERNEL = (-0.125, -0.125, 0.125, 0.125)
+
+
 def bend_at_samples(shape: np.ndarray) -> np.ndarray:
     """What a current's shape within its periods (its ramp-weighted mean above its mean,
     ``Signals.current_shape``) gives at the sample instants in the acceleration
     estimate, per unit of the current's gain: it moves the angle by ``(Δt²/2)·shape`` at
-    each period's end, of which the second central difference over ±2 samples reads
-    ``(s[n] + s[n + 1] − s[n − 1] − s[n − 2])/8``."""
-    padded = np.concatenate([shape[:1], shape[:1], shape, shape[-1:]])
-    n = len(shape)
-    return (padded[2:2 + n] + padded[3:3 + n] - padded[1:1 + n] - padded[:n]) / 8.0
+    each period's end (:data:`BEND_KERNEL`)."""
+    return at_samples(shape, BEND_KERNEL)
 
 
-def at_samples(per_interval: np.ndarray) -> np.ndarray:
+def at_samples(per_interval: np.ndarray,
+               kernel: tuple[float, ...] = DIFFERENCE_KERNEL) -> np.ndarray:
     """What a torque held at ``per_interval[n]`` over each period ``n .. n + 1`` gives at
-    the sample instants in the acceleration estimate (:data:`DIFFERENCE_KERNEL`)."""
+    the sample instants in the acceleration estimate (:data:`DIFFERENCE_KERNEL`, or
+    another ``kernel`` over the same four periods)."""
     padded = np.concatenate([per_interval[:1], per_interval[:1], per_interval,
                              per_interval[-1:]])
     n = len(per_interval)
     out = np.zeros(n)
-    for k, w in enumerate(DIFFERENCE_KERNEL):
+    for k, w in enumerate(kernel):
         out += w * padded[k:k + n]
     return out
 
