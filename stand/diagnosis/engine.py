@@ -31,6 +31,7 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis import input_weight, supply_limit
+from stand.diagnosis.current_noise import current_noise
 from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
 from stand.diagnosis.loop_input import loop_inputs
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, lag_share
@@ -199,10 +200,14 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     noise_gap = noise_gap_percent(sampled, bench.scale, bench.seg.horizon, base.model)
     residual_final = equation_residual(final.model, ho)
     residual_train = equation_residual(final.model, tr)
-    structure = structure_test(residual_train, tr, residual_final, ho, bench.seg.index)
+    noise = (current_noise(final.model, tr, residual_train),
+             current_noise(final.model, ho, residual_final))
+    structure = structure_test(residual_train, tr, residual_final, ho, bench.seg.index,
+                               noise=noise)
     along = along_travel_test(residual_train, tr, residual_final, ho, bench.seg.index)
     speed = (structure_test(residual_train, tr, residual_final, ho, bench.seg.index,
-                            SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True).test
+                            SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True,
+                            noise=noise).test
              if chosen else None)
     left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
                        along.test.p_value, named=bool(chosen),
