@@ -88,9 +88,10 @@ def current_noise(model: FittedModel, sig: Signals,
     are left out.
 
     The variance is read off the samples' second differences, which a current that
-    changes from sample to sample (a speed loop following a noise target) inflates,
-    by 3 to 25 times on benchmark runs; it is capped at what the model's equation error
-    ``residual`` (rad/s², on ``sig``) can carry, as the noise is part of it."""
+    changes from sample to sample (a speed loop following a noise target) inflates (its
+    standard deviation 3 to 50 times the sensor's on benchmark runs); it is capped at
+    what the model's equation error ``residual`` (rad/s², on ``sig``) can carry, as the
+    noise is part of it."""
     if sig.loop_parts is not None:
         return None
     spec = model.spec
