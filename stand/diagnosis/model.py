@@ -256,6 +256,20 @@ def period_current(model: FittedModel, sig: Signals) -> np.ndarray:
     return current
 
 
+def period_shape(model: FittedModel, sig: Signals) -> np.ndarray | None:
+    """How much the current's ramp-weighted mean over the period after each sample
+    exceeds its mean under ``model`` on ``sig`` (A; ``Signals.current_shape`` shifted by
+    the model's delay, with its lag refinement where the model has one), or None where
+    the current is held over each period."""
+    if sig.current_shape is None:
+        return None
+    spec = model.spec
+    shape = shifted(sig.current_shape, spec.delay)
+    if spec.lag:
+        shape = shape + lag_share(model) * lag_slope(sig, spec, 1)
+    return shape
+
+
 def lag_share(model: FittedModel) -> float:
     """The share of a period by which ``model`` corrects the drive's lag in the speed
     law's current (0 without the ``lag`` column)."""
@@ -649,6 +663,6 @@ def nominal() -> ModelSpec:
 __all__ = ["KICK_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
            "fit", "fit_residual_batch", "interval_current", "kick_basis", "lag_share",
            "lag_slope", "nominal",
-           "period_current", "supply_basis", "supply_classes", "supply_within_period",
+           "period_current", "period_shape", "supply_basis", "supply_classes", "supply_within_period",
            "periodic_column", "periodic_mean",
            "regressors", "shifted", "velocity_resolution", "velocity_sign"]

@@ -30,11 +30,9 @@ from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
     FittedModel,
-    lag_share,
-    lag_slope,
     period_current,
+    period_shape,
     periodic_mean,
-    shifted,
     velocity_resolution,
 )
 from stand.diagnosis.signals import Signals
@@ -93,12 +91,8 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
     drive = current[periods]
     # the angle's share of a current that is not held over its period (its ramp-weighted
     # mean above its mean, a kick's early current): (Δt²/2)·(Kt/J)·shape
-    bend = None
-    if sig.current_shape is not None:
-        shape = shifted(sig.current_shape, spec.delay)
-        if spec.lag:
-            shape = shape + lag_share(model) * lag_slope(sig, spec, 1)
-        bend = 0.5 * dt * dt * model.coef["current"] * shape[periods]
+    shape = period_shape(model, sig)
+    bend = None if shape is None else 0.5 * dt * dt * model.coef["current"] * shape[periods]
     step = _Stepper(model, sig)
     anchor = _State(sig.theta_f[first].copy(), sig.omega_meas[first].copy())
     if spec.backlash_gap is not None:
