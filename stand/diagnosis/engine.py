@@ -317,8 +317,8 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
         return law_bench, law_spec, ho, [
             f"driven by the PI speed loop's current over each sample period ({law_train.note}; "
             f"TRAIN simulated to {law_gap:.2f} %, {gap:.2f} % with the sampled current"
-            + ("; the drive's lag between the law's command and its current, pooled from "
-               "both runs' laws, refined with each model" if law_spec.lag else "") + ")"]
+            + ("; the drive's lag between the law's command and its current, from both "
+               "runs, refined with each model" if law_spec.lag else "") + ")"]
     return bench, spec, ho, [
         f"the PI speed law holds at the samples ({law_train.note}), but its current "
         f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %: the "

@@ -23,9 +23,11 @@ the period (input weight 0) instead of a reconstruction of the samples. Where th
 does not hold (a loop that saturates its voltage, another control law, a target that
 changes at every sample), the sampled current stays and a note says why.
 
-What the two runs tell of the drive is pooled (:func:`_pooled`): a current limit one
-run's samples show clips the other's kicks too, and both take the precision-weighted
-mean of the lags between the law's command and the drive's current their fits give. The law's current
+What the two runs tell of the drive is pooled (:func:`_pooled`): where the law holds on
+both with one integrator constant each, the drive's gains and lag are fitted to both at
+once; else a current limit one run's samples show clips the other's kicks too, and both
+take the precision-weighted mean of the lags between the law's command and the drive's
+current their fits give. The law's current
 also carries its shape within each period (``Signals.current_shape``: a kick's current
 comes early in its period and moves the angle more than its mean says), which the free
 run puts into the angle (:mod:`.simulate`), and the lag's change of current and shape
@@ -43,6 +45,7 @@ from stand.diagnosis.signals import Signals
 from stand.ident.speed_loop import (
     TARGET_COLUMN,
     SpeedLoop,
+    joint_speed_loops,
     lag_slopes,
     speed_loop,
     tracking_errors,
@@ -103,8 +106,11 @@ def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInp
     error, lag = tracking_errors(sig.theta, target, sig.dt_s)
     parts = np.column_stack([_late(loop.kp * error, loop.delay),
                              _late(loop.ki * lag, loop.delay)])
-    note = (f"{run.source}: kp {loop.kp:.3g} A·s/rad, ki {loop.ki:.3g} A/rad, the law "
-            f"explaining the sampled current to {loop.residual_ratio:.2g} times its noise"
+    note = (f"{run.source}: kp {loop.kp:.3g} A·s/rad, ki {loop.ki:.3g} A/rad"
+            + (f" (the drive's gains and lag fitted to {loop.runs} runs at once)"
+               if loop.runs > 1 else "")
+            + f", the law explaining the sampled current to {loop.residual_ratio:.2g} times "
+            "its noise"
             + (f", its integrator fitted anew after each of {loop.resets} stretches at the "
                "current limit (the drive's anti-windup)" if loop.resets else ""))
     shape = _late(loop.period_shape, loop.delay)
@@ -142,6 +148,11 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
 def _pooled(train: Run, holdout: Run) -> tuple[SpeedLoop | None, SpeedLoop | None]:
     """The two runs' speed loops with what they tell of the drive pooled where both hold.
 
+    Where the law with one integrator constant holds on both, the gains and the lag are
+    fitted to both runs at once (:func:`~stand.ident.speed_loop.joint_speed_loops`:
+    each run's own fit errs its own way with a coarse encoder, and a model identified
+    on TRAIN's law current carried the difference into HOLDOUT at every kick). Else:
+
     * A current limit one run's samples show is the other's too: there it clips kicks
       that reach it within a period and have left it by the next sample.
     * Each takes the mean of the drive's lags both fits give, weighted by their
@@ -153,6 +164,9 @@ def _pooled(train: Run, holdout: Run) -> tuple[SpeedLoop | None, SpeedLoop | Non
     first, second = (speed_loop(run) for run in runs)
     if first is None or second is None or not (first.holds and second.holds):
         return first, second
+    joint = joint_speed_loops(runs)
+    if joint is not None:
+        return joint[0], joint[1]
     loops = [first, second]
     limits = [loop.limit_A for loop in loops]
     if np.isfinite(min(limits)) and not np.isfinite(max(limits)):

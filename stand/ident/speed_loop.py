@@ -43,6 +43,9 @@ run this is indistinguishable from inertia. When the run holds the target
   of this one, whose largest part is the kick ``kp·Δr`` at its start (:func:`_lagged`).
   Left out, each kick carried ``τ/Δt`` too much current into its own period (8 % at
   0.2 ms and 2.5 ms), and a free run drifted by it at every target change.
+- **Runs of one drive.** The gains are the drive's, but each run's fit of them errs its
+  own way where the encoder is coarse; :func:`joint_speed_loops` fits them, and the
+  lag, to several runs at once (each keeping its delay and integrator constant).
 - **The current's shape within a period.** A kick's current comes early in its period
   and moves the angle more than its mean says: the angle takes the current's
   ramp-weighted mean (``period_shape`` is its excess over the mean), which a simulation
@@ -51,6 +54,7 @@ run this is indistinguishable from inertia. When the run holds the target
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -131,6 +135,9 @@ class SpeedLoop:
         The law's command, clipped, over each period before the drive's lag, shape
         (3, samples): its mean, its ramp-weighted mean and its value at the period's end
         (A; :func:`_command`), from which :meth:`relagged` delays it anew.
+    runs : int
+        Runs of the drive the gains and the lag were fitted to at once
+        (:func:`joint_speed_loops`); 1 for this run's own fit.
     """
 
     kp: float
@@ -147,6 +154,7 @@ class SpeedLoop:
     lag_sd: float = np.inf
     period_shape: np.ndarray = field(default_factory=lambda: np.empty(0))
     command: np.ndarray = field(default_factory=lambda: np.empty((3, 0)))
+    runs: int = 1
 
     def relagged(self, lag_s: float, dt: float, lag_sd: float = np.inf) -> SpeedLoop:
         """This loop with the drive's lag ``lag_s`` (s, of standard error ``lag_sd``;
@@ -245,6 +253,31 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         samples do not (a kick that reaches it within a period and has left it by the
         next sample), the law's current is clipped there too.
     """
+    fit = _plain_fit(theta, current, target, dt, quant_rad, trim)
+    if isinstance(fit, SpeedLoop):
+        return fit
+    law, at_limit, limit = fit
+    rows = law.rows
+    limit_A = limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else known_limit_A
+    if law.kp > 0 and law.ratio <= MAX_RESIDUAL_RATIO:
+        return law.loop(-limit_A, limit_A, limit_A)
+    if not trim:
+        reset = _with_resets(rows)
+        if reset is not None:
+            return reset
+    return SpeedLoop(law.kp, law.ki, float(law.plain[2]), law.delay, law.ratio, np.inf,
+                     np.empty(0), limit_A=limit_A, message=
+                     f"the PI speed law explains the current only to {law.ratio:.2g} times its "
+                     f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
+                     "saturates its voltage or follows another law, so the current between "
+                     "samples is not reconstructed and Kt/J may be high by up to "
+                     "π·f_loop·Δt")
+
+
+def _plain_fit(theta: np.ndarray, current: np.ndarray, target: np.ndarray, dt: float,
+               quant_rad: float, trim: bool) -> tuple[_Law, np.ndarray, float] | SpeedLoop:
+    """The law with one constant fitted off the samples at the largest current, those
+    samples and that current (A); or the refusal, a :class:`SpeedLoop` saying why."""
     n = len(theta)
     sigma = noise_sigma(current)
     if not sigma > 0:
@@ -265,20 +298,82 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
                   "too few samples away from the current limit")
         return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
                          f"{reason}: the speed loop's gains cannot be fitted")
-    limit_A = limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else known_limit_A
-    if law.kp > 0 and law.ratio <= MAX_RESIDUAL_RATIO:
-        return law.loop(-limit_A, limit_A, limit_A)
-    if not trim:
-        reset = _with_resets(rows)
-        if reset is not None:
-            return reset
-    return SpeedLoop(law.kp, law.ki, float(law.plain[2]), law.delay, law.ratio, np.inf,
-                     np.empty(0), limit_A=limit_A, message=
-                     f"the PI speed law explains the current only to {law.ratio:.2g} times its "
-                     f"noise (at most {MAX_RESIDUAL_RATIO} for the law to hold): the loop "
-                     "saturates its voltage or follows another law, so the current between "
-                     "samples is not reconstructed and Kt/J may be high by up to "
-                     "π·f_loop·Δt")
+    return law, at_limit, limit
+
+
+def joint_speed_loops(runs: Sequence[Run]) -> list[SpeedLoop] | None:
+    """The PI loops of runs of one drive with its gains and lag fitted to all of them
+    at once (each run keeps its own delay and integrator constant), and a current limit
+    one run's samples show clipping every run's law; None where the law with one
+    constant does not hold on every run, or the joint gains explain some run's current
+    only beyond ``MAX_RESIDUAL_RATIO`` times its noise (the gains changed between the
+    runs).
+
+    The gains are the drive's, but each run's fit of them errs its own way, beyond its
+    statistical error: the encoder step enters the speed and the acceleration the law
+    is fitted on as a pattern set by the speeds the run holds, not as white noise
+    (two runs of one 500-line stand: ``kp`` +0.9 % and −1.2 %, each ±0.15 %). A model
+    identified on one run's law current and simulated on the other's then carries the
+    difference at every kick.
+    """
+    fits = []
+    for run in runs:
+        if TARGET_COLUMN not in run:
+            return None
+        theta = run["position_rad"]
+        fit = _plain_fit(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
+                         quantization_step(theta), trim=False)
+        if isinstance(fit, SpeedLoop) or not (fit[0].kp > 0
+                                             and fit[0].ratio <= MAX_RESIDUAL_RATIO):
+            return None
+        fits.append(fit)
+    joint = _joint([law for law, _, _ in fits])
+    if any(law.ratio > MAX_RESIDUAL_RATIO or not law.kp > 0 for law in joint):
+        return None
+    known = min(limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
+                for law, (_, at_limit, limit) in zip(joint, fits, strict=True))
+    return [replace(law.loop(-known, known, known), runs=len(joint)) for law in joint]
+
+
+def _joint(laws: list[_Law]) -> list[_Law]:
+    """``laws`` (one constant each) refitted with their gains, plain and lagged, shared:
+    each keeps its rows, delay and constant; ``A``, ``mean_square`` and the covariances
+    are the joint fit's, ``ratio`` each run's RMS of the lagged residual over its noise."""
+    plain, lagged = _JointFit(laws, lag=False), _JointFit(laws, lag=True)
+    cov = np.linalg.pinv(lagged.design.T @ lagged.design) * lagged.mean_square
+    return [replace(law, plain=plain.beta[plain.order[k]], lagged=lagged.beta[lagged.order[k]],
+                    A=plain.design, mean_square=plain.mean_square, ratio=lagged.ratios[k],
+                    lag_cov=cov[np.ix_(lagged.order[k], lagged.order[k])])
+            for k, law in enumerate(laws)]
+
+
+class _JointFit:
+    """Weighted least squares of several runs' laws with the gains (``kp``, ``ki`` and,
+    with ``lag``, the acceleration's coefficient) shared and each run's constant its own.
+    ``order[k]`` picks run ``k``'s parameters from ``beta`` in the order of its own fit
+    (:meth:`_Rows.columns`); ``ratios[k]`` is its rows' RMS of the weighted residual."""
+
+    def __init__(self, laws: list[_Law], lag: bool) -> None:
+        blocks = [law.rows.weighed(law.used, law.delay, law.segment, lag, law.kp)
+                  for law in laws]
+        gains = [0, 1, -1] if lag else [0, 1]
+        own = [A.shape[1] - len(gains) for A, _ in blocks]
+        starts = np.cumsum([len(gains), *own])
+        lengths = [len(b) for _, b in blocks]
+        self.design = np.zeros((sum(lengths), int(starts[-1])))
+        ends = np.cumsum(lengths)
+        for k, (A, _) in enumerate(blocks):
+            rows = slice(ends[k] - lengths[k], ends[k])
+            self.design[rows, :len(gains)] = A[:, gains]
+            self.design[rows, starts[k]:starts[k + 1]] = A[:, 2:2 + own[k]]
+        b = np.concatenate([b for _, b in blocks])
+        self.beta = np.linalg.lstsq(self.design, b, rcond=None)[0]
+        residual = b - self.design @ self.beta
+        self.mean_square = float(residual @ residual) / (len(b) - self.design.shape[1])
+        self.ratios = [float(np.sqrt(np.mean(part**2)))
+                       for part in np.split(residual, ends[:-1])]
+        self.order = [np.array([0, 1, *range(starts[k], starts[k + 1]), *([2] if lag else [])])
+                      for k in range(len(blocks))]
 
 
 def _with_resets(rows: _Rows) -> SpeedLoop | None:
@@ -405,7 +500,7 @@ class _Rows:
         labels = np.unique(segment[rows + delay])
         return _Law(self, delay, segment, labels, plain, lagged, A, mean_square,
                     float(np.sqrt(lag_square)),
-                    np.linalg.pinv(A_lag.T @ A_lag) * lag_square)
+                    np.linalg.pinv(A_lag.T @ A_lag) * lag_square, rows)
 
     def columns(self, rows: np.ndarray, delay: int, segment: np.ndarray,
                 lag: bool) -> np.ndarray:
@@ -423,18 +518,24 @@ class _Rows:
         X = self.columns(rows, delay, segment, lag)
         y = self.current[rows + delay]
         beta, *_ = np.linalg.lstsq(X, y, rcond=None)
-        sd = np.sqrt(self.sigma**2 + (beta[0] * self.angle_sd * self.spread[rows]) ** 2)
-        A, b = X / sd[:, None], y / sd
+        A, b = self.weighed(rows, delay, segment, lag, float(beta[0]))
         beta, *_ = np.linalg.lstsq(A, b, rcond=None)
         return beta, A, float(np.sum((b - A @ beta) ** 2)) / (len(rows) - X.shape[1])
+
+    def weighed(self, rows: np.ndarray, delay: int, segment: np.ndarray, lag: bool,
+                kp: float) -> tuple[np.ndarray, np.ndarray]:
+        """The law's columns at ``rows`` and the current there, each row divided by its
+        noise: the current's and the encoder step's through the speed at ``kp``."""
+        X = self.columns(rows, delay, segment, lag)
+        sd = np.sqrt(self.sigma**2 + (kp * self.angle_sd * self.spread[rows]) ** 2)
+        return X / sd[:, None], self.current[rows + delay] / sd
 
     def _trimmed(self, rows: np.ndarray, delay: int, segment: np.ndarray) -> np.ndarray:
         """``rows`` less those the law misses by more than ``TRIM_SIGMAS``, repeatedly."""
         for _ in range(TRIM_PASSES):
             beta = self._weighted(rows, delay, segment, False)[0]
-            sd = np.sqrt(self.sigma**2 + (beta[0] * self.angle_sd * self.spread[rows]) ** 2)
-            law = self.columns(rows, delay, segment, False) @ beta
-            inside = np.abs(self.current[rows + delay] - law) <= TRIM_SIGMAS * sd
+            A, b = self.weighed(rows, delay, segment, False, float(beta[0]))
+            inside = np.abs(b - A @ beta) <= TRIM_SIGMAS
             if inside.all() or inside.sum() < MIN_ROWS:
                 break
             rows = rows[inside]
@@ -446,8 +547,8 @@ class _Law:
     """The PI law fitted at one delay: ``plain`` is ``[kp, ki, c…]`` (a constant per
     segment label in ``labels``), ``lagged`` the same with the acceleration's coefficient
     last (the drive's lag); ``A`` and ``mean_square`` are the plain fit's weighted
-    design and residual mean square, ``ratio`` the lagged fit's RMS over the noise and
-    ``lag_cov`` its covariance."""
+    design and residual mean square, ``ratio`` the lagged fit's RMS over the noise,
+    ``lag_cov`` its covariance and ``used`` the rows fitted."""
 
     rows: _Rows
     delay: int
@@ -459,6 +560,7 @@ class _Law:
     mean_square: float
     ratio: float
     lag_cov: np.ndarray
+    used: np.ndarray
 
     @property
     def kp(self) -> float:

@@ -20,12 +20,13 @@ from stand.diagnosis.signals import prepare
 from stand.diagnosis.simulate import segments
 from stand.diagnosis.structure import MAX_PHASE_SHARE, along_travel_test
 from stand.excitation import excitation
-from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
+from stand.ident.speed_loop import TARGET_COLUMN, joint_speed_loops, speed_loop
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run
+from tests.bench.diagnose.benchmark import draw_case, simulate_case
 from tests.unit.test_diagnose_effects import stand_runs
 from tests.unit.test_speed_loop import speed_run
 
@@ -111,6 +112,28 @@ def test_a_current_limit_one_run_shows_clips_the_kicks_of_the_other() -> None:
     assert peak < float(np.max(np.abs(alone.period_current))) - 0.1
     result = diagnose(train, holdout)
     assert result.verdict == "none", (result.verdict, result.notes)
+
+
+def test_the_drives_gains_are_fitted_to_both_runs_at_once() -> None:
+    # benchmark seed 254 case 34: an effect-free 500-line stand under a PI speed loop
+    # (kp 0.0267 A·s/rad) with PRBS steps of ±126 rad/s at 3.2 ms. Each run's own fit of
+    # the gains errs its own way with the coarse encoder (kp +0.9 % and −1.2 %, each
+    # ±0.15 %); the model identified on TRAIN's law current carried the difference into
+    # HOLDOUT at every kick: a gap of 2.5 % against 0.36 % of noise, `unexplained`.
+    case = draw_case(34, 254, outside_share=0.3, outside_set="held_out")
+    train, holdout = (Run(simulate_case(case, k), name)
+                      for k, name in enumerate(("train", "holdout")))
+    alone = [speed_loop(run) for run in (train, holdout)]
+    assert all(loop is not None and loop.holds for loop in alone)
+    assert abs(alone[0].kp - alone[1].kp) > 0.015 * case.drive.speed_kp  # type: ignore[union-attr]
+    loops = joint_speed_loops([train, holdout])
+    assert loops is not None
+    assert loops[0].kp == loops[1].kp
+    assert loops[0].kp == pytest.approx(case.drive.speed_kp, rel=0.01)
+    assert all(loop.residual_ratio <= 1.0 for loop in loops)
+    result = diagnose(train, holdout)
+    assert result.verdict == "none", (result.verdict, result.notes)
+    assert result.gap_percent < 1.5 * result.noise_gap_percent
 
 
 def _speed_sine(seed: int, amplitude: float) -> Run:

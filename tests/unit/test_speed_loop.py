@@ -9,7 +9,7 @@ import pytest
 
 from stand.excitation import excitation
 from stand.ident.identify import identify_run
-from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
+from stand.ident.speed_loop import TARGET_COLUMN, joint_speed_loops, speed_loop
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
@@ -40,6 +40,22 @@ def test_loop_gains_are_found_from_the_target() -> None:
     assert loop is not None and loop.holds
     assert abs(loop.kp / drive.speed_kp - 1) < 0.01
     assert loop.residual_ratio < 1.1
+
+
+def test_runs_of_one_drive_share_its_gains_and_runs_of_two_do_not() -> None:
+    # Two runs of the 10 Hz drive: one kp, ki and lag for both, each run's constant its
+    # own, and each run's law still within its noise. A 10 Hz and a 20 Hz drive: the
+    # shared gains would explain neither run, and no joint law is given.
+    first, drive = speed_run(10.0, seed=3)
+    second = speed_run(10.0, seed=4)[0]
+    loops = joint_speed_loops([first, second])
+    assert loops is not None
+    assert loops[0].kp == loops[1].kp and loops[0].ki == loops[1].ki
+    assert loops[0].lag_s == loops[1].lag_s
+    assert all(loop.runs == 2 and loop.residual_ratio < 1.1 for loop in loops)
+    assert abs(loops[0].kp / drive.speed_kp - 1) < 0.01
+    other = speed_run(20.0, seed=4)[0]
+    assert joint_speed_loops([first, other]) is None
 
 
 def test_reconstructed_current_removes_the_loop_bias() -> None:
