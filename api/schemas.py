@@ -160,3 +160,4 @@ class DiagnoseRequest(_Body):
     horizon_s: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] | None = Field(
         None, description="re-anchoring horizon of the simulation, s")
     max_effects: int | None = Field(None, ge=1, le=8, description="most effects in a verdict")
+    motor: Motor = None

@@ -61,7 +61,7 @@ def _step_identify(body: StepIdentifyRequest, runs: dict[str, Any]) -> JsonResul
 
 def _diagnose(body: DiagnoseRequest, runs: dict[str, Any]) -> JsonResult:
     options = body.model_dump(include={"kt", "horizon_s", "max_effects"}, exclude_none=True)
-    return diagnose(runs["train"], runs["holdout"], **options)
+    return diagnose(runs["train"], runs["holdout"], **options, supply=motor_supply(body.motor))
 
 
 @dataclass(frozen=True)

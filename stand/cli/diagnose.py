@@ -9,6 +9,7 @@ from typing import Any
 from stand import Diagnosis, InputError, diagnose, read_run
 from stand.cli import options
 from stand.diagnosis.engine import ANCHOR_HORIZON_S, MAX_EFFECTS, diagnose_with_traces
+from stand.ident.supply import motor_supply
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,6 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keep seed 000's spring term C·θ in the nominal model")
     parser.add_argument("--plot", metavar="DIR", type=options.output_dir,
                         help="write PNG figures to this folder")
+    parser.add_argument("--motor", default=None, metavar="PROFILE",
+                        help="motor profile (name or YAML path) whose drive's current limit "
+                             "clips a speed loop's kicks between samples")
 
 
 def run(args: argparse.Namespace) -> Diagnosis:
@@ -34,7 +38,7 @@ def run(args: argparse.Namespace) -> Diagnosis:
     if args.kt is not None and not args.kt > 0:
         raise InputError(f"--kt must be > 0 N·m/A, got {args.kt}")
     options = dict(kt=args.kt, horizon_s=args.horizon, max_effects=args.max_effects,
-                   spring=args.spring)
+                   spring=args.spring, supply=motor_supply(args.motor))
     if not args.plot:
         return diagnose(train, holdout, **options)
     from stand.diagnosis.plots import write_plots

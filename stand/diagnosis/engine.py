@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -63,6 +64,9 @@ from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
 from stand.errors import InputError, NotExcitedError
 from stand.runfile import Run
+
+if TYPE_CHECKING:
+    from stand.ident.supply import DriveSupply
 
 #: Free-run length between re-anchorings of the simulation, s.
 ANCHOR_HORIZON_S = 0.1
@@ -104,8 +108,8 @@ class HoldoutComparison:
 def compare_on_holdout(train: Run, holdout: Run,
                        model_of: Callable[[ModelSpec, Signals], FittedModel],
                        horizon_s: float = ANCHOR_HORIZON_S,
-                       reference_of: Callable[[ModelSpec, Signals], FittedModel] | None = None
-                       ) -> HoldoutComparison:
+                       reference_of: Callable[[ModelSpec, Signals], FittedModel] | None = None,
+                       supply: DriveSupply | None = None) -> HoldoutComparison:
     """The diagnosis' nominal model (or another reference) against another model, on
     HOLDOUT.
 
@@ -123,7 +127,8 @@ def compare_on_holdout(train: Run, holdout: Run,
     InputError
         Runs too short for a holdout test.
     """
-    bench, base_spec, _, _ = _driven(train, holdout, horizon_s, False)
+    limit = supply.current_limit_A if supply is not None else np.inf
+    bench, base_spec, _, _ = _driven(train, holdout, horizon_s, False, limit)
     nominal = bench.score(base_spec)
     reference = (nominal if reference_of is None
                  else bench.score_model(reference_of(base_spec, bench.train)))
@@ -136,7 +141,7 @@ def compare_on_holdout(train: Run, holdout: Run,
 
 def diagnose(train: Run, holdout: Run, kt: float | None = None,
              horizon_s: float = ANCHOR_HORIZON_S, max_effects: int = MAX_EFFECTS,
-             spring: bool = False) -> Diagnosis:
+             spring: bool = False, supply: DriveSupply | None = None) -> Diagnosis:
     """Diagnose the sim-to-real gap of the nominal seed-000 model (CONTRACT §3).
 
     Parameters
@@ -157,6 +162,12 @@ def diagnose(train: Run, holdout: Run, kt: float | None = None,
         without bound and a spring fitted to it only stands in for other errors (a
         constant torque over a position range away from zero, an inertia error under
         sine motion, where ``θ'' ∝ −θ``). Turn it on for a shaft held by a spring.
+    supply : DriveSupply or None
+        The drive's supply and current limit (a motor profile's,
+        :func:`stand.ident.supply.motor_supply`). Its current limit clips the speed
+        loop's kicks where the law's current drives the models: a kick can pass the
+        limit early in a period and be back under it by the next sample, and then no
+        sample shows the limit.
 
     Returns
     -------
@@ -167,12 +178,13 @@ def diagnose(train: Run, holdout: Run, kt: float | None = None,
     InputError
         Runs that are too short, do not move, or have different sample periods.
     """
-    return diagnose_with_traces(train, holdout, kt, horizon_s, max_effects, spring)[0]
+    return diagnose_with_traces(train, holdout, kt, horizon_s, max_effects, spring, supply)[0]
 
 
 def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                          horizon_s: float = ANCHOR_HORIZON_S, max_effects: int = MAX_EFFECTS,
-                         spring: bool = False) -> tuple[Diagnosis, Traces]:
+                         spring: bool = False, supply: DriveSupply | None = None
+                         ) -> tuple[Diagnosis, Traces]:
     """:func:`diagnose`, plus the :class:`Traces` the figures are drawn from."""
     if kt is not None and not kt > 0:
         raise InputError(f"kt must be a torque constant > 0 N·m/A, got {kt}")
@@ -180,7 +192,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         raise InputError(f"horizon_s must be > 0 s, got {horizon_s}")
     if max_effects < 1:
         raise InputError(f"max_effects must be >= 1, got {max_effects}")
-    bench, base_spec, sampled, input_notes = _driven(train, holdout, horizon_s, spring)
+    limit = supply.current_limit_A if supply is not None else np.inf
+    bench, base_spec, sampled, input_notes = _driven(train, holdout, horizon_s, spring, limit)
     tr, ho = bench.train, bench.holdout
     base = bench.score(base_spec)
     singles = {name: bench.candidate(name, base) for name in effects.EFFECTS}
@@ -283,11 +296,12 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
             "(fitted on TRAIN, tested on HOLDOUT)"]
 
 
-def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
+def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool, limit_A: float
             ) -> tuple[Bench, ModelSpec, Signals, list[str]]:
     """The two runs prepared with the input current that simulates TRAIN best, and the
     nominal spec for it; also HOLDOUT with its sampled current (the noise gap's current
-    noise is the sensor's) and notes on what drives the models.
+    noise is the sensor's) and notes on what drives the models (``limit_A``: the drive's
+    current limit where known, A, else infinite).
 
     The sampled current's reconstructions (:func:`_nominal_spec`) compete on TRAIN with
     the speed loop's current where both runs hold their target and the PI law holds on
@@ -302,7 +316,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool
             f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
-    law_train, law_holdout = loop_inputs(train, holdout, tr, ho)
+    law_train, law_holdout = loop_inputs(train, holdout, tr, ho, limit_A)
     # the sampled current, with the speed target's changes where both runs hold it
     bench = Bench(law_train.sampled, law_holdout.sampled, horizon_s)
     spec = _nominal_spec(bench.on_train, spring)

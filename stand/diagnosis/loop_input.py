@@ -111,6 +111,8 @@ def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInp
                if loop.runs > 1 else "")
             + f", the law explaining the sampled current to {loop.residual_ratio:.2g} times "
             "its noise"
+            + (f", clipped at the current limit of {loop.limit_A:.3g} A" if loop.saturates
+               else "")
             + (f", its integrator fitted anew after each of {loop.resets} stretches at the "
                "current limit (the drive's anti-windup)" if loop.resets else ""))
     shape = _late(loop.period_shape, loop.delay)
@@ -124,18 +126,20 @@ def _late(values: np.ndarray, delay: int) -> np.ndarray:
     return np.concatenate([np.repeat(values[:1], delay), values[:len(values) - delay]])
 
 
-def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
-                ) -> tuple[LoopInput, LoopInput]:
+def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals,
+                limit_A: float = np.inf) -> tuple[LoopInput, LoopInput]:
     """:func:`loop_input` of TRAIN and HOLDOUT, the law's current on both or on neither
     (a model identified on one input and simulated on the other would carry their
-    difference as a gap); the notes say which and why."""
+    difference as a gap); the notes say which and why. ``limit_A``: the drive's current
+    limit where known (A), which clips the law where neither run's samples show one."""
     if (TARGET_COLUMN in train) != (TARGET_COLUMN in holdout):
         # a target in one run only: neither the law's current nor the kicks on either
         return (LoopInput(tr, tr, False, "the speed target is recorded in one run only: "
                           "both are driven by the sampled current"),
                 LoopInput(ho, ho, False))
     first, second = (loop_input(run, sig, loop) for run, sig, loop
-                     in zip((train, holdout), (tr, ho), _pooled(train, holdout), strict=True))
+                     in zip((train, holdout), (tr, ho), _pooled(train, holdout, limit_A),
+                            strict=True))
     if first.from_law == second.from_law:
         return first, second
     refused = first.note if not first.from_law else second.note
@@ -145,7 +149,8 @@ def loop_inputs(train: Run, holdout: Run, tr: Signals, ho: Signals
                       "sampled current"))
 
 
-def _pooled(train: Run, holdout: Run) -> tuple[SpeedLoop | None, SpeedLoop | None]:
+def _pooled(train: Run, holdout: Run, limit_A: float = np.inf
+            ) -> tuple[SpeedLoop | None, SpeedLoop | None]:
     """The two runs' speed loops with what they tell of the drive pooled where both hold.
 
     Where the law with one integrator constant holds on both, the gains and the lag are
@@ -161,10 +166,10 @@ def _pooled(train: Run, holdout: Run) -> tuple[SpeedLoop | None, SpeedLoop | Non
       milliampere-second.
     """
     runs = (train, holdout)
-    first, second = (speed_loop(run) for run in runs)
+    first, second = (speed_loop(run, limit_A) for run in runs)
     if first is None or second is None or not (first.holds and second.holds):
         return first, second
-    joint = joint_speed_loops(runs)
+    joint = joint_speed_loops(runs, limit_A)
     if joint is not None:
         return joint[0], joint[1]
     loops = [first, second]

@@ -249,9 +249,10 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         a stretch where the drive's voltage saturates, when the law is wanted only as
         the start of a simulation that models that (:mod:`stand.ident.closed_loop`).
     known_limit_A : float
-        The drive's current limit where another run of it shows one, A: where this run's
-        samples do not (a kick that reaches it within a period and has left it by the
-        next sample), the law's current is clipped there too.
+        The drive's current limit where another run of it shows one, or where it is
+        known (a motor profile's), A: where this run's samples do not show one (a kick
+        that reaches it within a period and has left it by the next sample), the law's
+        current is clipped there too.
     """
     fit = _plain_fit(theta, current, target, dt, quant_rad, trim)
     if isinstance(fit, SpeedLoop):
@@ -301,10 +302,12 @@ def _plain_fit(theta: np.ndarray, current: np.ndarray, target: np.ndarray, dt: f
     return law, at_limit, limit
 
 
-def joint_speed_loops(runs: Sequence[Run]) -> list[SpeedLoop] | None:
+def joint_speed_loops(runs: Sequence[Run], known_limit_A: float = np.inf
+                      ) -> list[SpeedLoop] | None:
     """The PI loops of runs of one drive with its gains and lag fitted to all of them
     at once (each run keeps its own delay and integrator constant), and a current limit
-    one run's samples show clipping every run's law; None where the law with one
+    one run's samples show (else ``known_limit_A``, the drive's own where known)
+    clipping every run's law; None where the law with one
     constant does not hold on every run, or the joint gains explain some run's current
     only beyond ``MAX_RESIDUAL_RATIO`` times its noise (the gains changed between the
     runs).
@@ -330,8 +333,9 @@ def joint_speed_loops(runs: Sequence[Run]) -> list[SpeedLoop] | None:
     joint = _joint([law for law, _, _ in fits])
     if any(law.ratio > MAX_RESIDUAL_RATIO or not law.kp > 0 for law in joint):
         return None
-    known = min(limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
+    shown = min(limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
                 for law, (_, at_limit, limit) in zip(joint, fits, strict=True))
+    known = shown if np.isfinite(shown) else known_limit_A
     return [replace(law.loop(-known, known, known), runs=len(joint)) for law in joint]
 
 

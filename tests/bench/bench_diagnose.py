@@ -52,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--classes", nargs="+", choices=CLASSES,
                         help="run only the cases of these classes among the --cases drawn "
                         "(same case numbers as a full run)")
+    parser.add_argument("--tell-limit", action="store_true",
+                        help="tell the diagnosis each drive's supply and current limit, as a "
+                        "motor profile does (stand diagnose --motor)")
     parser.add_argument("--no-timing", action="store_true", help="skip the timing case")
     parser.add_argument("--rows", help="write every case as JSON lines to this file, each "
                         "as soon as it is in")
@@ -79,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = run_benchmark(args.cases, args.seed, args.workers, min_snr=args.min_snr,
                              outside_share=args.outside_share, first=args.first,
                              outside_set=args.outside_set, on_row=keep,
-                             classes=tuple(args.classes) if args.classes else None)
+                             classes=tuple(args.classes) if args.classes else None,
+                             tell_limit=args.tell_limit)
         if out:
             out.close()
     wall = time.perf_counter() - start

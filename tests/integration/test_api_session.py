@@ -87,7 +87,8 @@ def test_lab_session(client: httpx.Client) -> None:
     assert eff["efficiency"] == pytest.approx(stand.reducer.efficiency, rel=0.03)
 
     # 5. Diagnosis: train on one no-load run, hold out the other.
-    answer = client.post("/diagnose", json={"train": no_load[0], "holdout": no_load[1]})
+    answer = client.post("/diagnose", json={"train": no_load[0], "holdout": no_load[1],
+                                            "motor": "crouzet_82800502"})
     assert answer.status_code in (200, 422), answer.text  # 422: data the method refuses
     if answer.status_code == 200:
         diag = answer.json()

@@ -7,11 +7,15 @@ J 2e-5 kg·m², reversing PRBS speed steps of ±60 rad/s, 3 ms, 2000-line encode
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from stand.cli import main
 from stand.diagnosis import diagnose
 from stand.diagnosis.engine import compare_on_holdout
 from stand.diagnosis.loop_input import loop_input, loop_inputs
@@ -21,11 +25,12 @@ from stand.diagnosis.simulate import segments
 from stand.diagnosis.structure import MAX_PHASE_SHARE, along_travel_test
 from stand.excitation import excitation
 from stand.ident.speed_loop import TARGET_COLUMN, joint_speed_loops, speed_loop
+from stand.ident.supply import DriveSupply
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
-from stand.runfile import Run
+from stand.runfile import Run, write_run
 from tests.bench.diagnose.benchmark import draw_case, simulate_case
 from tests.unit.test_diagnose_effects import stand_runs
 from tests.unit.test_speed_loop import speed_run
@@ -112,6 +117,34 @@ def test_a_current_limit_one_run_shows_clips_the_kicks_of_the_other() -> None:
     assert peak < float(np.max(np.abs(alone.period_current))) - 0.1
     result = diagnose(train, holdout)
     assert result.verdict == "none", (result.verdict, result.notes)
+
+
+def test_a_current_limit_no_sample_shows_is_taken_from_the_motor_profile(
+        tmp_path: Path, capsys: Any) -> None:
+    # The 20 Hz loop stopped at 3.5 A, reversing between about ±40 rad/s in both runs:
+    # each kick (kp·80 rad/s ≈ 4 A) passes the limit early in its period and is back
+    # under it by the next sample, so neither run's samples show it and the law over-drives
+    # every kick (gap 1.06 % against a noise gap of 0.40 %). Told the drive's limit (a
+    # motor profile's), the law is clipped there and the gap falls to 0.26 %.
+    train = speed_run(20.0, current_limit_A=3.5, seed=3, amplitude=40.0)[0]
+    holdout = speed_run(20.0, current_limit_A=3.5, seed=5, amplitude=42.0)[0]
+    assert all(not loop.saturates for loop in (speed_loop(train), speed_loop(holdout))
+               if loop is not None)
+    plain = diagnose(train, holdout)
+    told = diagnose(train, holdout, supply=DriveSupply(48.0, 2.0, 1e-3, 0.05, 3.5))
+    assert told.verdict == "none", (told.verdict, told.notes)
+    assert told.gap_percent < told.noise_gap_percent < plain.gap_percent
+    assert "clipped at the current limit of 3.5 A" in told.notes[0]
+    # `stand diagnose --motor PROFILE` reads the limit from the profile; an unknown
+    # profile is bad input (exit 2, named on stderr)
+    paths = [write_run(tmp_path / f"{name}.csv", run.columns)
+             for name, run in (("train", train), ("holdout", holdout))]
+    assert main(["diagnose", str(paths[0]), "--holdout", str(paths[1]), "--json",
+                 "--motor", "crouzet_82800502"]) == 0
+    assert json.loads(capsys.readouterr().out)["verdict"]
+    assert main(["diagnose", str(paths[0]), "--holdout", str(paths[1]),
+                 "--motor", "no_such_motor"]) == 2
+    assert "no_such_motor" in capsys.readouterr().err
 
 
 def test_the_drives_gains_are_fitted_to_both_runs_at_once() -> None:

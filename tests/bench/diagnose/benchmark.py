@@ -31,6 +31,7 @@ from stand.effects import EFFECTS, UNEXPLAINED, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
 from stand.ident.speed_loop import TARGET_COLUMN
+from stand.ident.supply import DriveSupply
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
@@ -305,8 +306,10 @@ def _simulated(case: Case, which: int, duration_s: float,
 
 def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
              min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
-             outside_set: str = "tuning") -> dict[str, Any]:
-    """Draw, simulate, write, read back and diagnose one case blind; then score it."""
+             outside_set: str = "tuning", tell_limit: bool = False) -> dict[str, Any]:
+    """Draw, simulate, write, read back and diagnose one case blind; then score it.
+    ``tell_limit``: the diagnosis is told the drive's supply and current limit, as a
+    motor profile tells them (``stand diagnose --motor``)."""
     case = draw_case(index, seed, min_snr, duration_s, outside_share, outside_set)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
         paths = [write_run(Path(folder) / f"{name}.csv", simulate_case(case, k, duration_s))
@@ -314,7 +317,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         train, holdout = (read_run(p, "single") for p in paths)
         start = time.perf_counter()
         try:
-            result = diagnose(train, holdout)
+            result = diagnose(train, holdout, supply=_supply(case) if tell_limit else None)
         except StandError as exc:  # the engine refused the case: a miss, kept in the count
             return _refused(case, exc, time.perf_counter() - start, len(holdout))
         elapsed = time.perf_counter() - start
@@ -506,7 +509,14 @@ def confusion_table(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _run_case_args(args: tuple[int, int, float, float, float, str]) -> dict[str, Any]:
+def _supply(case: Case) -> DriveSupply:
+    """The drive's supply and current limit and the motor's armature, as its profile
+    holds them."""
+    return DriveSupply(case.drive.supply_V, case.motor.R, case.motor.L, case.motor.Kt,
+                       case.drive.current_limit_A)
+
+
+def _run_case_args(args: tuple[int, int, float, float, float, str, bool]) -> dict[str, Any]:
     return run_case(*args)
 
 
@@ -514,11 +524,13 @@ def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = R
                   min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
                   first: int = 0, outside_set: str = "tuning",
                   on_row: Callable[[dict[str, Any]], None] | None = None,
-                  classes: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+                  classes: tuple[str, ...] | None = None,
+                  tell_limit: bool = False) -> list[dict[str, Any]]:
     """Run the blind cases ``first`` .. ``first + cases - 1`` with ``workers`` processes;
     with ``classes``, only those of these classes (:func:`case_class`). Rows in case
-    order, each also handed to ``on_row`` as soon as it is in."""
-    jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set)
+    order, each also handed to ``on_row`` as soon as it is in. ``tell_limit``:
+    :func:`run_case`'s."""
+    jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set, tell_limit)
             for index in range(first, first + cases)
             if classes is None or case_class(index, seed, outside_share) in classes]
     rows = []
