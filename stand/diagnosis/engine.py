@@ -127,8 +127,7 @@ def compare_on_holdout(train: Run, holdout: Run,
     InputError
         Runs too short for a holdout test.
     """
-    limit = supply.current_limit_A if supply is not None else np.inf
-    bench, base_spec, _, _ = _driven(train, holdout, horizon_s, False, limit)
+    bench, base_spec, _, _ = _driven(train, holdout, horizon_s, False, supply)
     nominal = bench.score(base_spec)
     reference = (nominal if reference_of is None
                  else bench.score_model(reference_of(base_spec, bench.train)))
@@ -192,8 +191,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         raise InputError(f"horizon_s must be > 0 s, got {horizon_s}")
     if max_effects < 1:
         raise InputError(f"max_effects must be >= 1, got {max_effects}")
-    limit = supply.current_limit_A if supply is not None else np.inf
-    bench, base_spec, sampled, input_notes = _driven(train, holdout, horizon_s, spring, limit)
+    bench, base_spec, sampled, input_notes = _driven(train, holdout, horizon_s, spring, supply)
     tr, ho = bench.train, bench.holdout
     base = bench.score(base_spec)
     singles = {name: bench.candidate(name, base) for name in effects.EFFECTS}
@@ -296,12 +294,12 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
             "(fitted on TRAIN, tested on HOLDOUT)"]
 
 
-def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool, limit_A: float
-            ) -> tuple[Bench, ModelSpec, Signals, list[str]]:
+def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
+            supply: DriveSupply | None) -> tuple[Bench, ModelSpec, Signals, list[str]]:
     """The two runs prepared with the input current that simulates TRAIN best, and the
     nominal spec for it; also HOLDOUT with its sampled current (the noise gap's current
-    noise is the sensor's) and notes on what drives the models (``limit_A``: the drive's
-    current limit where known, A, else infinite).
+    noise is the sensor's) and notes on what drives the models (``supply``: the drive's,
+    whose current limit clips the speed law, where known).
 
     The sampled current's reconstructions (:func:`_nominal_spec`) compete on TRAIN with
     the speed loop's current where both runs hold their target and the PI law holds on
@@ -316,7 +314,8 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool, limit_A: f
             f"{train.source} is sampled every {tr.dt_s:.6g} s, {holdout.source} every "
             f"{ho.dt_s:.6g} s; TRAIN and HOLDOUT need the same sample period"
         )
-    law_train, law_holdout = loop_inputs(train, holdout, tr, ho, limit_A)
+    limit = supply.current_limit_A if supply is not None else np.inf
+    law_train, law_holdout = loop_inputs(train, holdout, tr, ho, limit)
     # the sampled current, with the speed target's changes where both runs hold it
     bench = Bench(law_train.sampled, law_holdout.sampled, horizon_s)
     spec = _nominal_spec(bench.on_train, spring)

@@ -169,7 +169,7 @@ def _pooled(train: Run, holdout: Run, limit_A: float = np.inf
     first, second = (speed_loop(run, limit_A) for run in runs)
     if first is None or second is None or not (first.holds and second.holds):
         return first, second
-    joint = joint_speed_loops(runs, limit_A)
+    joint = joint_speed_loops([first, second], limit_A)
     if joint is not None:
         return joint[0], joint[1]
     loops = [first, second]

@@ -138,6 +138,9 @@ class SpeedLoop:
     runs : int
         Runs of the drive the gains and the lag were fitted to at once
         (:func:`joint_speed_loops`); 1 for this run's own fit.
+    law : _Law or None
+        The fit this loop's current comes from (None for a refusal), from which
+        :func:`joint_speed_loops` refits the gains with other runs'.
     """
 
     kp: float
@@ -155,6 +158,7 @@ class SpeedLoop:
     period_shape: np.ndarray = field(default_factory=lambda: np.empty(0))
     command: np.ndarray = field(default_factory=lambda: np.empty((3, 0)))
     runs: int = 1
+    law: _Law | None = field(default=None, repr=False, compare=False)
 
     def relagged(self, lag_s: float, dt: float, lag_sd: float = np.inf) -> SpeedLoop:
         """This loop with the drive's lag ``lag_s`` (s, of standard error ``lag_sd``;
@@ -254,11 +258,25 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
         that reaches it within a period and has left it by the next sample), the law's
         current is clipped there too.
     """
-    fit = _plain_fit(theta, current, target, dt, quant_rad, trim)
-    if isinstance(fit, SpeedLoop):
-        return fit
-    law, at_limit, limit = fit
-    rows = law.rows
+    n = len(theta)
+    sigma = noise_sigma(current)
+    if not sigma > 0:
+        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
+                         "a noise-free current: the speed loop's gains cannot be fitted")
+    rows = _Rows(theta, current, target, dt, quant_rad, sigma)
+    # samples at the largest |current| may sit at the drive's current limit: fitted
+    # without them, and the limit is taken as reached where the law exceeds it there
+    at_limit, limit = rows.largest()
+    law = rows.fit(at_limit, np.zeros(n, dtype=int), trim)
+    if law is None:
+        smooth = int(np.count_nonzero(rows.keep))
+        reason = (f"only {smooth} of {n} samples have a speed free of a target change "
+                  "around them (a target that changes at almost every sample, such as a "
+                  "sine, leaves no window without a kink; hold the target over a few "
+                  "samples)" if smooth < MIN_ROWS else
+                  "too few samples away from the current limit")
+        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
+                         f"{reason}: the speed loop's gains cannot be fitted")
     limit_A = limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else known_limit_A
     if law.kp > 0 and law.ratio <= MAX_RESIDUAL_RATIO:
         return law.loop(-limit_A, limit_A, limit_A)
@@ -275,42 +293,15 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
                      "π·f_loop·Δt")
 
 
-def _plain_fit(theta: np.ndarray, current: np.ndarray, target: np.ndarray, dt: float,
-               quant_rad: float, trim: bool) -> tuple[_Law, np.ndarray, float] | SpeedLoop:
-    """The law with one constant fitted off the samples at the largest current, those
-    samples and that current (A); or the refusal, a :class:`SpeedLoop` saying why."""
-    n = len(theta)
-    sigma = noise_sigma(current)
-    if not sigma > 0:
-        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
-                         "a noise-free current: the speed loop's gains cannot be fitted")
-    rows = _Rows(theta, current, target, dt, quant_rad, sigma)
-    # samples at the largest |current| may sit at the drive's current limit: fitted
-    # without them, and the limit is taken as reached where the law exceeds it there
-    limit = float(np.max(np.abs(current)))
-    at_limit = np.abs(current) >= limit - LIMIT_SIGMAS * sigma
-    law = rows.fit(at_limit, np.zeros(n, dtype=int), trim)
-    if law is None:
-        smooth = int(np.count_nonzero(rows.keep))
-        reason = (f"only {smooth} of {n} samples have a speed free of a target change "
-                  "around them (a target that changes at almost every sample, such as a "
-                  "sine, leaves no window without a kink; hold the target over a few "
-                  "samples)" if smooth < MIN_ROWS else
-                  "too few samples away from the current limit")
-        return SpeedLoop(0.0, 0.0, 0.0, 0, np.inf, np.inf, np.empty(0),
-                         f"{reason}: the speed loop's gains cannot be fitted")
-    return law, at_limit, limit
-
-
-def joint_speed_loops(runs: Sequence[Run], known_limit_A: float = np.inf
+def joint_speed_loops(loops: Sequence[SpeedLoop], known_limit_A: float = np.inf
                       ) -> list[SpeedLoop] | None:
-    """The PI loops of runs of one drive with its gains and lag fitted to all of them
-    at once (each run keeps its own delay and integrator constant), and a current limit
-    one run's samples show (else ``known_limit_A``, the drive's own where known)
-    clipping every run's law; None where the law with one
-    constant does not hold on every run, or the joint gains explain some run's current
-    only beyond ``MAX_RESIDUAL_RATIO`` times its noise (the gains changed between the
-    runs).
+    """Runs of one drive (``loops``: each run's own loop, :func:`speed_loop`) with its
+    gains and lag fitted to all of them at once (each run keeps its own delay and
+    integrator constant), and a current limit one run's samples show (else
+    ``known_limit_A``, the drive's own where known) clipping every run's law; None where
+    the law with one constant does not hold on every run, or the joint gains explain
+    some run's current only beyond ``MAX_RESIDUAL_RATIO`` times its noise (the gains
+    changed between the runs).
 
     The gains are the drive's, but each run's fit of them errs its own way, beyond its
     statistical error: the encoder step enters the speed and the acceleration the law
@@ -319,22 +310,15 @@ def joint_speed_loops(runs: Sequence[Run], known_limit_A: float = np.inf
     identified on one run's law current and simulated on the other's then carries the
     difference at every kick.
     """
-    fits = []
-    for run in runs:
-        if TARGET_COLUMN not in run:
-            return None
-        theta = run["position_rad"]
-        fit = _plain_fit(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
-                         quantization_step(theta), trim=False)
-        if isinstance(fit, SpeedLoop) or not (fit[0].kp > 0
-                                             and fit[0].ratio <= MAX_RESIDUAL_RATIO):
-            return None
-        fits.append(fit)
-    joint = _joint([law for law, _, _ in fits])
+    laws = [loop.law for loop in loops
+            if loop.holds and not loop.resets and loop.law is not None]
+    if len(laws) < len(loops):
+        return None
+    joint = _joint(laws)
     if any(law.ratio > MAX_RESIDUAL_RATIO or not law.kp > 0 for law in joint):
         return None
     shown = min(limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
-                for law, (_, at_limit, limit) in zip(joint, fits, strict=True))
+                for law in joint for at_limit, limit in [law.rows.largest()])
     known = shown if np.isfinite(shown) else known_limit_A
     return [replace(law.loop(-known, known, known), runs=len(joint)) for law in joint]
 
@@ -473,6 +457,12 @@ class _Rows:
         keep[0] = False   # read before the first target: the one before it is unknown
         keep[n - MAX_DELAY:] = False
         self.keep = keep
+
+    def largest(self) -> tuple[np.ndarray, float]:
+        """The samples within ``LIMIT_SIGMAS`` of the largest |current| (which may sit at
+        the drive's current limit), and that current, A."""
+        limit = float(np.max(np.abs(self.current)))
+        return np.abs(self.current) >= limit - LIMIT_SIGMAS * self.sigma, limit
 
     def fit(self, at_limit: np.ndarray, segment: np.ndarray, trim: bool,
             delays: list[int] | None = None) -> _Law | None:
@@ -637,7 +627,7 @@ class _Law:
         period, shape = _lagged(command, lag_s / r.dt)
         return SpeedLoop(kp, ki, float(constants[0]), self.delay, self.ratio, rel_sd, period,
                          limit_A=limit_A, resets=self.resets, lag_s=lag_s, lag_sd=lag_sd,
-                         period_shape=shape, command=command)
+                         period_shape=shape, command=command, law=self)
 
 
 def _command(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,

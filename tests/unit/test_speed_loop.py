@@ -48,14 +48,15 @@ def test_runs_of_one_drive_share_its_gains_and_runs_of_two_do_not() -> None:
     # shared gains would explain neither run, and no joint law is given.
     first, drive = speed_run(10.0, seed=3)
     second = speed_run(10.0, seed=4)[0]
-    loops = joint_speed_loops([first, second])
+    alone = [speed_loop(run) for run in (first, second, speed_run(20.0, seed=4)[0])]
+    assert all(loop is not None for loop in alone)
+    loops = joint_speed_loops(alone[:2])  # type: ignore[arg-type]
     assert loops is not None
     assert loops[0].kp == loops[1].kp and loops[0].ki == loops[1].ki
     assert loops[0].lag_s == loops[1].lag_s
     assert all(loop.runs == 2 and loop.residual_ratio < 1.1 for loop in loops)
     assert abs(loops[0].kp / drive.speed_kp - 1) < 0.01
-    other = speed_run(20.0, seed=4)[0]
-    assert joint_speed_loops([first, other]) is None
+    assert joint_speed_loops([alone[0], alone[2]]) is None  # type: ignore[list-item]
 
 
 def test_reconstructed_current_removes_the_loop_bias() -> None:
