@@ -324,25 +324,34 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
     if not law_train.from_law:
         return bench, spec, ho, notes
     law_bench = Bench(law_train.signals, law_holdout.signals, horizon_s)
-    law_spec, law_gap = _law_spec(law_bench, spring, law_train.lag_sd_s)
-    gap = bench.on_train.score(spec).gap
+    # both inputs compared with the current samples shifted back by the delay the law's
+    # fit finds them late by: a model that misplaces every current by it tells nothing
+    # of which input reconstructs the current between samples better
+    delay = law_train.delay
+    law_spec, law_gap = _law_spec(law_bench, spring, law_train.lag_sd_s, delay)
+    gap = bench.on_train.score(replace(spec, delay=delay)).gap
+    late = (f", both with the current samples taken {delay} sample{'s' if delay > 1 else ''} "
+            "late, as the law's fit finds them" if delay else "")
     if law_gap < gap:
         return law_bench, law_spec, ho, [
             f"driven by the PI speed loop's current over each sample period ({law_train.note}; "
-            f"TRAIN simulated to {law_gap:.2f} %, {gap:.2f} % with the sampled current"
+            f"TRAIN simulated to {law_gap:.2f} %, {gap:.2f} % with the sampled current{late}"
             + ("; the drive's lag between the law's command and its current, from both "
                "runs, refined with each model" if law_spec.lag else "") + ")"]
     return bench, spec, ho, [
         f"the PI speed law holds at the samples ({law_train.note}), but its current "
-        f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %: the "
+        f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %{late}: the "
         "sampled current drives the models (the loop may saturate its voltage between "
         "samples)", *_kick_note(spec), *_supply_note(spec, bench.train)]
 
 
-def _law_spec(law_bench: Bench, spring: bool, lag_sd_s: float) -> tuple[ModelSpec, float]:
+def _law_spec(law_bench: Bench, spring: bool, lag_sd_s: float,
+              delay: int = 0) -> tuple[ModelSpec, float]:
     """The nominal spec driven by the speed law's current, with the lag's refinement
     (``ModelSpec.lag``) where it simulates TRAIN better within what the laws' fits of
-    the lag allow (``LAG_SIGMAS`` of ``lag_sd_s``, its standard error); and its TRAIN gap.
+    the lag allow (``LAG_SIGMAS`` of ``lag_sd_s``, its standard error); and its TRAIN gap
+    with the current shifted back by ``delay`` samples (the spec has none: a delay is
+    the vocabulary's, which the candidates search).
 
     Each run's law gives the drive's lag to several tens of percent on a run of small
     kicks (:mod:`.loop_input` pools the two by their precision); at each target change
@@ -353,15 +362,15 @@ def _law_spec(law_bench: Bench, spring: bool, lag_sd_s: float) -> tuple[ModelSpe
     something else (a shaft that sticks at each reversal, whose missing friction a free
     lag of 30 periods traded with ``Kt/J``)."""
     plain = ModelSpec(input_weight=PERIOD_MEAN_WEIGHT, spring=spring)
-    gap = law_bench.on_train.score(plain).gap
+    gap = law_bench.on_train.score(replace(plain, delay=delay)).gap
     try:
-        lagged = law_bench.on_train.score(replace(plain, lag=True))
+        lagged = law_bench.on_train.score(replace(plain, lag=True, delay=delay))
     except NotExcitedError:
         return plain, gap
     dt = law_bench.train.dt_s
     # a lag is less than a period (beyond, it is a delay, which the vocabulary names)
     if lagged.gap < gap and abs(lag_share(lagged.model)) * dt <= min(LAG_SIGMAS * lag_sd_s, dt):
-        return lagged.spec, lagged.gap
+        return replace(lagged.spec, delay=0), lagged.gap
     return plain, gap
 
 

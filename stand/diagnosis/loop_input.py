@@ -24,8 +24,9 @@ does not hold (a loop that saturates its voltage, another control law, a target 
 changes at every sample), the sampled current stays and a note says why.
 
 What the two runs tell of the drive is pooled (:func:`_pooled`): where the law holds on
-both with one integrator constant each, the drive's gains and lag are fitted to both at
-once; else a current limit one run's samples show clips the other's kicks too, and both
+both with one integrator constant each, the drive's gains, lag and current samples'
+delay are fitted to both at once, and where no one set explains both, neither run's law
+is used; else a current limit one run's samples show clips the other's kicks too, and both
 take the precision-weighted mean of the lags between the law's command and the drive's
 current their fits give. The law's current
 also carries its shape within each period (``Signals.current_shape``: a kick's current
@@ -70,6 +71,9 @@ class LoopInput:
         What was done with a speed-loop run, in words ("" for a run without a target).
     lag_sd_s : float
         Standard error of the drive's lag in the law's current, s (infinite where none).
+    delay : int
+        Samples the current samples lag the encoder, as the law's fit finds them (0
+        where the law does not hold).
     """
 
     signals: Signals
@@ -77,6 +81,7 @@ class LoopInput:
     from_law: bool
     note: str = ""
     lag_sd_s: float = np.inf
+    delay: int = 0
 
 
 def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInput:
@@ -118,7 +123,8 @@ def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInp
     shape = _late(loop.period_shape, loop.delay)
     slopes = np.stack([_late(row, loop.delay) for row in lag_slopes(loop.command)])
     return LoopInput(replace(sig, current=current, loop_parts=parts, current_shape=shape,
-                             lag_slopes=slopes, cache={}), sig, True, note, loop.lag_sd)
+                             lag_slopes=slopes, cache={}), sig, True, note, loop.lag_sd,
+                     loop.delay)
 
 
 def _late(values: np.ndarray, delay: int) -> np.ndarray:
@@ -153,10 +159,13 @@ def _pooled(train: Run, holdout: Run, limit_A: float = np.inf
             ) -> tuple[SpeedLoop | None, SpeedLoop | None]:
     """The two runs' speed loops with what they tell of the drive pooled where both hold.
 
-    Where the law with one integrator constant holds on both, the gains and the lag are
-    fitted to both runs at once (:func:`~stand.ident.speed_loop.joint_speed_loops`:
-    each run's own fit errs its own way with a coarse encoder, and a model identified
-    on TRAIN's law current carried the difference into HOLDOUT at every kick). Else:
+    Where the law with one integrator constant holds on both, the gains, the lag and the
+    current samples' delay are fitted to both runs at once
+    (:func:`~stand.ident.speed_loop.joint_speed_loops`: each run's own fit errs its own
+    way with a coarse encoder, and a model identified on TRAIN's law current carried the
+    difference into HOLDOUT at every kick). Where no one set of them explains both runs,
+    the runs disagree on the drive, and neither run's law drives the models. Else (a
+    run's integrator fitted anew after each stretch at the current limit):
 
     * A current limit one run's samples show is the other's too: there it clips kicks
       that reach it within a period and have left it by the next sample.
@@ -172,6 +181,18 @@ def _pooled(train: Run, holdout: Run, limit_A: float = np.inf
     joint = joint_speed_loops([first, second], limit_A)
     if joint is not None:
         return joint[0], joint[1]
+    if not (first.resets or second.resets):
+        # each run's law holds with one constant, but no one set of the drive's gains
+        # and delay explains both: one fit is wrong (a run at its current limit much of
+        # the time fits kp a tenth of the drive's and still passes), or the drive
+        # changed; a model identified on one run's law current misplaces the other's
+        message = (f"the PI speed law's fits of the two runs disagree on the drive (kp "
+                   f"{first.kp:.3g} and {second.kp:.3g} A·s/rad, the current samples "
+                   f"late by {first.delay} and {second.delay} samples), and no one set of "
+                   "its gains explains both runs")
+        refused = [replace(loop, period_current=np.empty(0), message=message)
+                   for loop in (first, second)]
+        return refused[0], refused[1]
     loops = [first, second]
     limits = [loop.limit_A for loop in loops]
     if np.isfinite(min(limits)) and not np.isfinite(max(limits)):

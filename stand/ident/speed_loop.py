@@ -44,8 +44,9 @@ run this is indistinguishable from inertia. When the run holds the target
   Left out, each kick carried ``τ/Δt`` too much current into its own period (8 % at
   0.2 ms and 2.5 ms), and a free run drifted by it at every target change.
 - **Runs of one drive.** The gains are the drive's, but each run's fit of them errs its
-  own way where the encoder is coarse; :func:`joint_speed_loops` fits them, and the
-  lag, to several runs at once (each keeping its delay and integrator constant).
+  own way where the encoder is coarse; :func:`joint_speed_loops` fits them, the lag
+  and the current samples' delay to several runs at once (each keeping its integrator
+  constant).
 - **The current's shape within a period.** A kick's current comes early in its period
   and moves the angle more than its mean says: the angle takes the current's
   ramp-weighted mean (``period_shape`` is its excess over the mean), which a simulation
@@ -296,8 +297,9 @@ def fit_speed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray,
 def joint_speed_loops(loops: Sequence[SpeedLoop], known_limit_A: float = np.inf
                       ) -> list[SpeedLoop] | None:
     """Runs of one drive (``loops``: each run's own loop, :func:`speed_loop`) with its
-    gains and lag fitted to all of them at once (each run keeps its own delay and
-    integrator constant), and a current limit one run's samples show (else
+    gains and lag fitted to all of them at once at one delay of the current samples
+    (:func:`_at_one_delay`; each run keeps its own integrator constant), and a current
+    limit one run's samples show (else
     ``known_limit_A``, the drive's own where known) clipping every run's law; None where
     the law with one constant does not hold on every run, or the joint gains explain
     some run's current only beyond ``MAX_RESIDUAL_RATIO`` times its noise (the gains
@@ -314,13 +316,44 @@ def joint_speed_loops(loops: Sequence[SpeedLoop], known_limit_A: float = np.inf
             if loop.holds and not loop.resets and loop.law is not None]
     if len(laws) < len(loops):
         return None
-    joint = _joint(laws)
+    shared = _at_one_delay(laws)
+    if shared is None:
+        return None
+    joint = _joint(shared)
     if any(law.ratio > MAX_RESIDUAL_RATIO or not law.kp > 0 for law in joint):
         return None
     shown = min(limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
                 for law in joint for at_limit, limit in [law.rows.largest()])
     known = shown if np.isfinite(shown) else known_limit_A
     return [replace(law.loop(-known, known, known), runs=len(joint)) for law in joint]
+
+
+def _at_one_delay(laws: list[_Law]) -> list[_Law] | None:
+    """``laws`` refitted at one delay of the current samples, the drive's: the shortest
+    of the delays their own fits found unless a longer one fits all runs at once better
+    beyond the sampling error of a mean square (:meth:`_Rows.fit`'s rule); None where a
+    run leaves too few rows at it.
+
+    One run's fit can trade a delay of one sample for the lag and a larger ``kp`` (the
+    lag's acceleration column stands for most of a period's shift where the target
+    changes often): two runs of one drive found 1 and 0 samples, ``kp`` −2 % and +15 %.
+    Each run's law current is then placed on a timeline of its own, and a delay fitted
+    on TRAIN misplaces every current of HOLDOUT by a sample."""
+    delays = sorted({law.delay for law in laws})
+    if len(delays) == 1:
+        return laws
+    best: tuple[float, list[_Law]] | None = None
+    for delay in delays:
+        refits = [law.rows.fit(law.rows.largest()[0], law.segment, False, [delay])
+                  for law in laws]
+        if any(law is None for law in refits):
+            continue
+        at = [law for law in refits if law is not None]
+        fit = _JointFit(at, lag=True)
+        rows = sum(len(law.used) for law in at)
+        if best is None or fit.mean_square < best[0] * (1 - DELAY_SIGMAS * np.sqrt(2 / rows)):
+            best = (fit.mean_square, at)
+    return None if best is None else best[1]
 
 
 def _joint(laws: list[_Law]) -> list[_Law]:
