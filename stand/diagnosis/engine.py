@@ -254,7 +254,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         speed_structure_p_value=speed.p_value if speed else None,
         speed_structure_shrink=speed.shrink if speed else None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
-               + bench.revisions
+               + bench.revisions + bench.set_aside
                + _approximation_note(base.gap, final.gap, noise_gap, left)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
                                  along.test.p_value, speed) + _phase_note(along.phase_share)),

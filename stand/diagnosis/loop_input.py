@@ -123,8 +123,8 @@ def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInp
     shape = _late(loop.period_shape, loop.delay)
     slopes = np.stack([_late(row, loop.delay) for row in lag_slopes(loop.command)])
     return LoopInput(replace(sig, current=current, loop_parts=parts, current_shape=shape,
-                             lag_slopes=slopes, cache={}), sig, True, note, loop.lag_sd,
-                     loop.delay)
+                             lag_slopes=slopes, kick_scale_sd=loop.kp_rel_sd, cache={}),
+                     sig, True, note, loop.lag_sd, loop.delay)
 
 
 def _late(values: np.ndarray, delay: int) -> np.ndarray:

@@ -25,6 +25,9 @@ from stand.errors import InputError, NotExcitedError
 
 #: Fewest segments for the paired test (the horizon shrinks on short runs).
 MIN_SEGMENTS = 12
+#: An effect that shows only at a speed loop's kicks must exceed this many standard
+#: uncertainties of the kicks' size in the law's current (a two-sided 95 % level).
+KICK_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,8 @@ class Bench:
         self.aliased: dict[str, tuple[str, ...]] = {}
         #: What the selection's backward pass changed in the verdict, in words.
         self.revisions: list[str] = []
+        #: Candidates set aside although both runs found them, and why, in words.
+        self.set_aside: list[str] = []
 
     def score(self, spec: ModelSpec) -> Scored:
         """``spec`` identified on TRAIN, simulated on HOLDOUT."""
@@ -129,7 +134,25 @@ class Bench:
             if again == NO_FIT:
                 return scored
         consistent = effect.agree(scored.model, fit(again, self.holdout))
+        if consistent and self._within_kick_error(effect, scored.model):
+            return replace(scored, consistent=False)
         return replace(scored, consistent=consistent)
+
+    def _within_kick_error(self, effect: type[Effect], model: FittedModel) -> bool:
+        """Whether ``effect`` in ``model`` shows only as a share of the speed law's kicks
+        (:meth:`~stand.effects.base.Effect.kick_share`) within ``KICK_SIGMAS`` of the
+        law's uncertainty of their size, where the law's current drives the models: an
+        error of the law's ``kp`` makes the same motion (noted once per effect)."""
+        sd, share = self.train.kick_scale_sd, effect.kick_share(model)
+        if sd is None or share is None or share > KICK_SIGMAS * sd:
+            return False
+        note = (f"{effect.name} set aside: it shows only at the speed loop's kicks, as "
+                f"{100 * share:.2g} % more acceleration there, within {KICK_SIGMAS:g} "
+                f"times the {100 * sd:.2g} % uncertainty of the kicks' size in the speed "
+                "law's current (its kp); an error of kp makes the same motion")
+        if note not in self.set_aside:
+            self.set_aside.append(note)
+        return True
 
     def simulated(self, effect: type[Effect], sig: Signals
                   ) -> Callable[[ModelSpec], float] | None:

@@ -92,6 +92,10 @@ class Signals:
     #: a period of the drive's lag (2 × samples, A; :func:`stand.ident.speed_loop.
     #: lag_slopes`), whose error the models may take up (``ModelSpec.lag``).
     lag_slopes: np.ndarray | None = None
+    #: Under a speed loop whose law drives the models: the relative standard uncertainty
+    #: of the law's ``kp`` (:attr:`stand.ident.speed_loop.SpeedLoop.kp_rel_sd`), that
+    #: is of the size of every kick of its current; None otherwise.
+    kick_scale_sd: float | None = None
     #: Under a speed loop whose run holds its target (``speed_target_rad_s``): the
     #: target's change at the start of each period, ``r[n] − r[n − 1]`` (rad/s), whose
     #: kicks of the current between samples the input reconstruction may carry

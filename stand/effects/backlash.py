@@ -128,5 +128,12 @@ class Backlash(Effect):
             out["J_load"] = ratio * kt / c["current"]
         return out
 
+    @classmethod
+    def kick_share(cls, model: FittedModel) -> float | None:
+        """The load's inertia over the motor's: while the gap opens at a reversal, which
+        a speed loop kicks the current at, the motor alone accelerates by that share more,
+        as it would with that share more kick current."""
+        return max(-model.coef["load_accel"], 0.0)
+
     # a load behind a gap is a second inertia, not a term of the one-inertia model
     identified: ClassVar[bool] = False

@@ -136,6 +136,15 @@ class Effect:
         raise NotImplementedError
 
     @classmethod
+    def kick_share(cls, model: FittedModel) -> float | None:
+        """The relative change of the shaft's acceleration over a speed loop's kicks by
+        which the effect in ``model`` shows, where it shows only there; None for an
+        effect that does not (most). Such an effect cannot be told from an error of the
+        kicks' size in the input (the speed law's ``kp``,
+        :attr:`~stand.diagnosis.signals.Signals.kick_scale_sd`)."""
+        return None
+
+    @classmethod
     def grid(cls, base: ModelSpec) -> list[ModelSpec]:
         """For ``across_runs_on_one_tone`` effects: the specs picked from across runs."""
         return []
