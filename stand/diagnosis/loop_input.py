@@ -123,7 +123,8 @@ def loop_input(run: Run, sig: Signals, loop: SpeedLoop | None = None) -> LoopInp
     shape = _late(loop.period_shape, loop.delay)
     slopes = np.stack([_late(row, loop.delay) for row in lag_slopes(loop.command)])
     return LoopInput(replace(sig, current=current, loop_parts=parts, current_shape=shape,
-                             lag_slopes=slopes, kick_scale_sd=loop.kp_rel_sd, cache={}),
+                             lag_slopes=slopes, kick_scale_sd=loop.kp_rel_sd,
+                             law_offset_sd_A=loop.offset_sd_A, cache={}),
                      sig, True, note, loop.lag_sd, loop.delay)
 
 

@@ -25,9 +25,10 @@ from stand.errors import InputError, NotExcitedError
 
 #: Fewest segments for the paired test (the horizon shrinks on short runs).
 MIN_SEGMENTS = 12
-#: An effect that shows only at a speed loop's kicks must exceed this many standard
-#: uncertainties of the kicks' size in the law's current (a two-sided 95 % level).
-KICK_SIGMAS = 2.0
+#: Where a speed law's current drives the models, an effect that shows only as an error
+#: of that current would (a share of its kicks, a constant) must exceed this many of the
+#: law's standard uncertainties of it (a two-sided 95 % level).
+LAW_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -134,22 +135,32 @@ class Bench:
             if again == NO_FIT:
                 return scored
         consistent = effect.agree(scored.model, fit(again, self.holdout))
-        if consistent and self._within_kick_error(effect, scored.model):
+        if consistent and self._within_law_error(effect, scored.model):
             return replace(scored, consistent=False)
         return replace(scored, consistent=consistent)
 
-    def _within_kick_error(self, effect: type[Effect], model: FittedModel) -> bool:
-        """Whether ``effect`` in ``model`` shows only as a share of the speed law's kicks
-        (:meth:`~stand.effects.base.Effect.kick_share`) within ``KICK_SIGMAS`` of the
-        law's uncertainty of their size, where the law's current drives the models: an
-        error of the law's ``kp`` makes the same motion (noted once per effect)."""
-        sd, share = self.train.kick_scale_sd, effect.kick_share(model)
-        if sd is None or share is None or share > KICK_SIGMAS * sd:
+    def _within_law_error(self, effect: type[Effect], model: FittedModel) -> bool:
+        """Whether ``effect`` in ``model`` shows only as what an error of the speed law's
+        current would make, within ``LAW_SIGMAS`` of the law's uncertainty of it, where
+        the law's current drives the models (noted once per effect): a share of the
+        kicks (:meth:`~stand.effects.base.Effect.kick_share`) against the law's ``kp``,
+        or a constant current (:meth:`~stand.effects.base.Effect.law_offset_A`) against
+        its constant."""
+        share, offset = effect.kick_share(model), effect.law_offset_A(model)
+        kp_sd, offset_sd = self.train.kick_scale_sd, self.train.law_offset_sd_A
+        if share is not None and kp_sd is not None and share <= LAW_SIGMAS * kp_sd:
+            note = (f"{effect.name} set aside: it shows only at the speed loop's kicks, as "
+                    f"{100 * share:.2g} % more acceleration there, within {LAW_SIGMAS:g} "
+                    f"times the {100 * kp_sd:.2g} % uncertainty of the kicks' size in the "
+                    "speed law's current (its kp); an error of kp makes the same motion")
+        elif (offset is not None and offset_sd is not None
+              and offset <= LAW_SIGMAS * offset_sd):
+            note = (f"{effect.name} set aside: its {1e3 * offset:.2g} mA is within "
+                    f"{LAW_SIGMAS:g} times the {1e3 * offset_sd:.2g} mA uncertainty of the "
+                    "speed law's constant (the integrator's start and the current sensor's "
+                    "offset), whose error makes the same torque")
+        else:
             return False
-        note = (f"{effect.name} set aside: it shows only at the speed loop's kicks, as "
-                f"{100 * share:.2g} % more acceleration there, within {KICK_SIGMAS:g} "
-                f"times the {100 * sd:.2g} % uncertainty of the kicks' size in the speed "
-                "law's current (its kp); an error of kp makes the same motion")
         if note not in self.set_aside:
             self.set_aside.append(note)
         return True

@@ -96,6 +96,10 @@ class Signals:
     #: of the law's ``kp`` (:attr:`stand.ident.speed_loop.SpeedLoop.kp_rel_sd`), that
     #: is of the size of every kick of its current; None otherwise.
     kick_scale_sd: float | None = None
+    #: Under a speed loop whose law drives the models: the standard error of the law's
+    #: constant (the integrator's start and the current sensor's offset,
+    #: :attr:`stand.ident.speed_loop.SpeedLoop.offset_sd_A`), A; None otherwise.
+    law_offset_sd_A: float | None = None
     #: Under a speed loop whose run holds its target (``speed_target_rad_s``): the
     #: target's change at the start of each period, ``r[n] − r[n − 1]`` (rad/s), whose
     #: kicks of the current between samples the input reconstruction may carry

@@ -145,6 +145,14 @@ class Effect:
         return None
 
     @classmethod
+    def law_offset_A(cls, model: FittedModel) -> float | None:
+        """The constant current, A, as which the effect in ``model`` shows, where it shows
+        only as one; None for an effect that does not (most). Such an effect cannot be
+        told from an error of the speed law's constant in the input
+        (:attr:`~stand.diagnosis.signals.Signals.law_offset_sd_A`)."""
+        return None
+
+    @classmethod
     def grid(cls, base: ModelSpec) -> list[ModelSpec]:
         """For ``across_runs_on_one_tone`` effects: the specs picked from across runs."""
         return []

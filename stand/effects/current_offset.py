@@ -50,6 +50,10 @@ class CurrentOffset(Effect):
         return {"i0": -model.coef["one"] / model.coef["current"]}
 
     @classmethod
+    def law_offset_A(cls, model: FittedModel) -> float | None:
+        return abs(-model.coef["one"] / model.coef["current"])
+
+    @classmethod
     def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
         return [replace(base, offset=True)]
 

@@ -139,6 +139,9 @@ class SpeedLoop:
     runs : int
         Runs of the drive the gains and the lag were fitted to at once
         (:func:`joint_speed_loops`); 1 for this run's own fit.
+    offset_sd_A : float
+        Standard error of ``offset_A`` (of the fit with the lag), A; infinite for a
+        refusal.
     law : _Law or None
         The fit this loop's current comes from (None for a refusal), from which
         :func:`joint_speed_loops` refits the gains with other runs'.
@@ -159,6 +162,7 @@ class SpeedLoop:
     period_shape: np.ndarray = field(default_factory=lambda: np.empty(0))
     command: np.ndarray = field(default_factory=lambda: np.empty((3, 0)))
     runs: int = 1
+    offset_sd_A: float = np.inf
     law: _Law | None = field(default=None, repr=False, compare=False)
 
     def relagged(self, lag_s: float, dt: float, lag_sd: float = np.inf) -> SpeedLoop:
@@ -660,7 +664,8 @@ class _Law:
         period, shape = _lagged(command, lag_s / r.dt)
         return SpeedLoop(kp, ki, float(constants[0]), self.delay, self.ratio, rel_sd, period,
                          limit_A=limit_A, resets=self.resets, lag_s=lag_s, lag_sd=lag_sd,
-                         period_shape=shape, command=command, law=self)
+                         period_shape=shape, command=command,
+                         offset_sd_A=float(np.sqrt(max(self.lag_cov[2, 2], 0.0))), law=self)
 
 
 def _command(theta: np.ndarray, target: np.ndarray, omega: np.ndarray,
