@@ -51,7 +51,7 @@ class CurrentOffset(Effect):
 
     @classmethod
     def law_offset_A(cls, model: FittedModel) -> float | None:
-        return abs(-model.coef["one"] / model.coef["current"])
+        return abs(model.coef["one"] / model.coef["current"])
 
     @classmethod
     def ident_grid(cls, base: ModelSpec, sig: Signals) -> list[ModelSpec]:
