@@ -50,6 +50,7 @@ from stand.ident.speed_loop import (
     lag_slopes,
     speed_loop,
     tracking_errors,
+    within_limit,
 )
 from stand.runfile import Run
 
@@ -168,8 +169,9 @@ def _pooled(train: Run, holdout: Run, limit_A: float = np.inf
     the runs disagree on the drive, and neither run's law drives the models. Else (a
     run's integrator fitted anew after each stretch at the current limit):
 
-    * A current limit one run's samples show is the other's too: there it clips kicks
-      that reach it within a period and have left it by the next sample.
+    * A current limit one run's samples show is the other's too, where the other's
+      samples stay within it: there it clips kicks that reach it within a period and
+      have left it by the next sample.
     * Each takes the mean of the drive's lags both fits give, weighted by their
       precision: one run's fit of it can be off by tens of percent (a run of small
       kicks), and on a kick of a few amperes a percent of the lag is a
@@ -198,7 +200,7 @@ def _pooled(train: Run, holdout: Run, limit_A: float = np.inf
     limits = [loop.limit_A for loop in loops]
     if np.isfinite(min(limits)) and not np.isfinite(max(limits)):
         for k, run in enumerate(runs):
-            if np.isinf(loops[k].limit_A):
+            if np.isinf(loops[k].limit_A) and within_limit(run["current_A"], min(limits)):
                 refit = speed_loop(run, min(limits))
                 assert refit is not None  # the run holds its target
                 loops[k] = refit

@@ -326,10 +326,30 @@ def joint_speed_loops(loops: Sequence[SpeedLoop], known_limit_A: float = np.inf
     joint = _joint(shared)
     if any(law.ratio > MAX_RESIDUAL_RATIO or not law.kp > 0 for law in joint):
         return None
-    shown = min(limit if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES else np.inf
-                for law in joint for at_limit, limit in [law.rows.largest()])
+    shown = _shown_limit(joint)
     known = shown if np.isfinite(shown) else known_limit_A
     return [replace(law.loop(-known, known, known), runs=len(joint)) for law in joint]
+
+
+def _shown_limit(laws: Sequence[_Law]) -> float:
+    """The drive's current limit the runs' samples show, A (infinite where none): the
+    least of the runs' largest |currents| at which the run's law goes beyond it
+    (:meth:`_Law.beyond`, at ``MIN_LIMIT_SAMPLES``) and which every run's samples stay
+    within (:func:`within_limit`). A drive's current never passes its limit: a level
+    that another run of the drive passes is the law's own small errors at one run's
+    peaks (two runs of one drive whose samples reach 2.82 A and 3.28 A, with a limit of
+    7.07 A: both laws were clipped at 2.82 A, and HOLDOUT's kicks with them)."""
+    shown = [limit for law in laws for at_limit, limit in [law.rows.largest()]
+             if law.beyond(at_limit, limit) >= MIN_LIMIT_SAMPLES
+             and all(within_limit(other.rows.current, limit) for other in laws)]
+    return min(shown, default=np.inf)
+
+
+def within_limit(current: np.ndarray, limit_A: float) -> bool:
+    """Whether a run's sampled ``current`` (A) stays within a current limit of
+    ``limit_A`` (A) up to ``LIMIT_SIGMAS`` of its noise (:func:`~stand.ident.noise.
+    noise_sigma`), as the current of a drive with that limit does."""
+    return bool(np.max(np.abs(current)) <= limit_A + LIMIT_SIGMAS * noise_sigma(current))
 
 
 def _at_one_delay(laws: list[_Law]) -> list[_Law] | None:
