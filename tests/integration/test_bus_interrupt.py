@@ -23,6 +23,13 @@ DURATION_S = 60
 EXIT_TIMEOUT_S = 60
 
 
+def _as_at_a_terminal() -> None:
+    """Ctrl-C as at a terminal: a suite started in the background by a shell without job
+    control (``bash tests/run.sh &`` in a script) ignores SIGINT, and its children
+    inherit that: the run never saw the signal and ended at 100 %."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_keeps_the_partial_run_and_ends_the_trace_with_the_stop(
         can_config: BusConfig, tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -30,7 +37,8 @@ def test_ctrl_c_keeps_the_partial_run_and_ends_the_trace_with_the_stop(
         [sys.executable, "-m", "stand", "run", "seed000_no_load", "-o", str(tmp_path),
          "--duration", str(DURATION_S), "--interface", can_config.interface,
          "--channel", can_config.channel, "--simulate"],
-        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=_as_at_a_terminal)
     assert proc.stderr is not None
     lines = []
     for line in proc.stderr:  # progress goes to stderr in 5 % steps; wait for the first one
