@@ -31,7 +31,7 @@ from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, write_run
-from tests.bench.diagnose.benchmark import Case, draw_case, simulate_case
+from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import stand_runs
 from tests.unit.test_speed_loop import speed_run
 
@@ -153,7 +153,7 @@ def test_a_level_another_run_passes_is_no_current_limit() -> None:
     # beyond them at three samples by its own small errors at the peaks; HOLDOUT's
     # samples reach 3.28 A. Both runs' laws were clipped at 2.82 A, HOLDOUT's kicks
     # with them: a gap of 1.81 % against 0.14 % of noise, `unexplained`.
-    case, train, holdout = benchmark_runs(73, 258)
+    case, train, holdout = case_runs(73, 258, held_out=True)
     peaks = [float(np.max(np.abs(run["current_A"]))) for run in (train, holdout)]
     assert peaks[0] < peaks[1] - 0.4 and peaks[1] < case.drive.current_limit_A - 3.0
     loops = joint_speed_loops([speed_loop(run) for run in (train, holdout)])  # type: ignore[misc]
@@ -162,24 +162,13 @@ def test_a_level_another_run_passes_is_no_current_limit() -> None:
     assert result.verdict == "none", (result.verdict, result.notes)
 
 
-def benchmark_runs(index: int, seed: int, held_out: bool = True) -> tuple[Case, Run, Run]:
-    """Case ``index`` of the diagnosis benchmark seeded ``seed`` (its held-out outside
-    effects drawn at a share of 0.3, as the benchmark runs it; ``held_out`` False: none),
-    and its TRAIN and HOLDOUT runs."""
-    case = (draw_case(index, seed, outside_share=0.3, outside_set="held_out") if held_out
-            else draw_case(index, seed))
-    train, holdout = (Run(simulate_case(case, k), name)
-                      for k, name in enumerate(("train", "holdout")))
-    return case, train, holdout
-
-
 def test_the_drives_gains_are_fitted_to_both_runs_at_once() -> None:
     # benchmark seed 254 case 34: an effect-free 500-line stand under a PI speed loop
     # (kp 0.0267 A·s/rad) with PRBS steps of ±126 rad/s at 3.2 ms. Each run's own fit of
     # the gains errs its own way with the coarse encoder (kp +0.9 % and −1.2 %, each
     # ±0.15 %); the model identified on TRAIN's law current carried the difference into
     # HOLDOUT at every kick: a gap of 2.5 % against 0.36 % of noise, `unexplained`.
-    case, train, holdout = benchmark_runs(34, 254)
+    case, train, holdout = case_runs(34, 254, held_out=True)
     alone = [speed_loop(run) for run in (train, holdout)]
     assert all(loop is not None and loop.holds for loop in alone)
     assert abs(alone[0].kp - alone[1].kp) > 0.015 * case.drive.speed_kp  # type: ignore[union-attr]
@@ -198,7 +187,7 @@ def test_the_runs_share_the_delay_of_the_current_samples() -> None:
     # under a PI speed loop whose target changes every 6 samples. HOLDOUT's own fit
     # trades the delay for the drive's lag and a larger kp (delay 0, kp +15 %), TRAIN's
     # finds it (delay 1): each run's law current sat on a timeline of its own.
-    case, train, holdout = benchmark_runs(18, 251)
+    case, train, holdout = case_runs(18, 251, held_out=True)
     alone = [speed_loop(run) for run in (train, holdout)]
     assert [loop.delay for loop in alone] == [1, 0]  # type: ignore[union-attr]
     loops = joint_speed_loops(alone)  # type: ignore[arg-type]
@@ -215,7 +204,7 @@ def test_the_inputs_are_compared_at_the_delay_the_laws_fit_finds() -> None:
     # sample), and the samples, which miss the loop's kicks, drove the models to
     # `backlash+unexplained`. At the delay the law's current simulates TRAIN to 0.8 %,
     # the samples' to 4.5 %.
-    case, train, holdout = benchmark_runs(105, 255)
+    case, train, holdout = case_runs(105, 255, held_out=True)
     result = diagnose(train, holdout)
     assert result.verdict == "delay", (result.verdict, result.notes)
     assert result.notes[0].startswith("driven by the PI speed loop's current")
@@ -227,7 +216,7 @@ def test_runs_whose_laws_disagree_on_the_drive_are_driven_by_the_samples() -> No
     # its own fit of the law (kp a tenth of the drive's) still explains its current to
     # 1.4 times the noise; no one set of gains explains both runs. Driven by each run's
     # own law, the model identified on TRAIN missed HOLDOUT by 115 %: `unexplained`.
-    case, train, holdout = benchmark_runs(52, 255)
+    case, train, holdout = case_runs(52, 255, held_out=True)
     alone = [speed_loop(run) for run in (train, holdout)]
     assert all(loop is not None and loop.holds for loop in alone)
     assert joint_speed_loops(alone) is None  # type: ignore[arg-type]
@@ -244,14 +233,14 @@ def test_a_backlash_within_the_error_of_the_kicks_is_set_aside() -> None:
     # HOLDOUT (noise 1.07 %), and a backlash whose load is 1.1 % of the motor's inertia
     # took 0.19 % more: it lets the motor accelerate 1.1 % more at each reversal's kick,
     # as 1.1 % more kick current would, and the law's kp is known to 4 %.
-    case, train, holdout = benchmark_runs(156, 253)
+    case, train, holdout = case_runs(156, 253, held_out=True)
     result = diagnose(train, holdout)
     assert result.verdict == "delay", (result.verdict, result.notes)
     assert any(note.startswith("backlash set aside: it shows only at the speed loop's kicks")
                for note in result.notes), result.notes
     # a load of the drive's own inertia behind a gap stays (seed 255 case 34: backlash
     # and cogging, the load 2.3 times the motor's inertia, kp known to 0.1 %)
-    case, train, holdout = benchmark_runs(34, 255)
+    case, train, holdout = case_runs(34, 255, held_out=True)
     assert sorted(diagnose(train, holdout).verdict.split("+")) == ["backlash", "cogging"]
 
 
@@ -260,12 +249,12 @@ def test_a_current_offset_within_the_error_of_the_laws_constant_is_set_aside() -
     # the law's current. Its constant (the integrator's start and the sensor's offset)
     # is known to 1.3 mA on each run (−1.6 and −2.4 mA fitted), and a current offset of
     # −1.1 mA was named: the law's own error makes the same torque.
-    case, train, holdout = benchmark_runs(3, 253)
+    case, train, holdout = case_runs(3, 253, held_out=True)
     result = diagnose(train, holdout)
     assert result.verdict == "none", (result.verdict, result.notes)
     assert any(note.startswith("current_offset set aside: its") for note in result.notes)
     # an offset of 18 mA, the law's constant known to 0.04 mA, stays (seed 252 case 37)
-    case, train, holdout = benchmark_runs(37, 252, held_out=False)
+    case, train, holdout = case_runs(37, 252)
     result = diagnose(train, holdout)
     assert result.verdict == "current_offset", (result.verdict, result.notes)
     assert result.model["current_offset"]["i0"] == pytest.approx(

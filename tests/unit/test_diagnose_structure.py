@@ -30,8 +30,7 @@ from stand.diagnosis.structure import (
 )
 from stand.effects import UNEXPLAINED
 from stand.errors import InputError
-from stand.runfile import Run
-from tests.bench.diagnose.benchmark import draw_case, simulate_case
+from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 #: Fan drag coefficient, N·m·s²/rad²: 0.25 mN·m at 100 rad/s, a hundredth of the drive
@@ -187,9 +186,7 @@ def test_an_effect_free_current_sine_read_with_noise_is_none(index: int) -> None
     # 1/40 (case 34) and 1/190 (case 69) of its RMS. Least squares on the noisy current
     # attenuated the current's gain and let the current's shapes take up the rest, on
     # TRAIN and HOLDOUT alike: both were `unexplained` (structure p 0.003 and 7e-10).
-    case = draw_case(index, 252)
-    train, holdout = (Run(simulate_case(case, k), name)
-                      for k, name in enumerate(("train", "holdout")))
+    _, train, holdout = case_runs(index, 252)
     result = diagnose(train, holdout)
     assert result.verdict == "none", result.message
     assert result.structure_p_value >= FAMILY_ALPHA

@@ -32,7 +32,7 @@ from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run
-from tests.unit.test_diagnose_loop_input import benchmark_runs
+from tests.bench.diagnose.benchmark import case_runs
 
 SUPPLY_V = 48.0
 DT_S = 0.003
@@ -126,7 +126,7 @@ def test_an_effect_is_checked_on_a_holdout_that_never_reaches_the_supply() -> No
     # never does, and that column is zero on it. The search on HOLDOUT that checks the
     # cogging TRAIN found (p 4e-9, shrink 0.59) refitted it with that column and was
     # never determined: the cogging was not consistent, and the verdict `none`.
-    case, train, holdout = benchmark_runs(44, 255)
+    case, train, holdout = case_runs(44, 255, held_out=True)
     assert [supply_classes(marked(run, prepare(run))) for run in (train, holdout)] == [
         ("both",), ()]
     result = diagnose(train, holdout)

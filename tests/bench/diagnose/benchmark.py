@@ -266,6 +266,17 @@ def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S,
     return {k: run[k] for k in names if k in run}
 
 
+def case_runs(index: int, seed: int, held_out: bool = False) -> tuple[Case, Run, Run]:
+    """Case ``index`` of the benchmark seeded ``seed`` and its TRAIN and HOLDOUT runs, as
+    tests take them (``held_out``: its held-out outside effects drawn at a share of 0.3,
+    as the benchmark runs it; else none)."""
+    case = (draw_case(index, seed, outside_share=0.3, outside_set="held_out") if held_out
+            else draw_case(index, seed))
+    train, holdout = (Run(simulate_case(case, k), name)
+                      for k, name in enumerate(("train", "holdout")))
+    return case, train, holdout
+
+
 #: Twin runs of the case simulated last (the SNR's and the visibility's share the
 #: effect-free HOLDOUT), by (seed, index, run, duration, effects).
 _TWINS: dict[tuple[int, int, int, float, str], Run] = {}
