@@ -288,17 +288,24 @@ def competitors(fitter: Fitter, chosen: Selection, pool: list[str]) -> list[Esti
     """Estimates of the models the data do not reject beside ``chosen``.
 
     The competitors are ``chosen`` with each of its effects at every other value of its
-    grid (a Stribeck velocity, a cogging order, a delay), with each effect of ``pool``
-    not in it added at every value of its grid, and, when the fitter fits the current's
-    timing, with the timing fixed at each of :data:`INPUT_WEIGHTS`. One is rejected when
-    its held-out error exceeds that of ``chosen`` by the paired test over the blocks at
-    :data:`COMPETITOR_ALPHA`; the others explain the run as well as ``chosen`` does.
+    grid (a Stribeck velocity, a cogging order, a delay), with each of its effects
+    replaced by one it nests (Coulomb friction for Stribeck friction: a run that spends
+    little time near standstill tells them apart by little), with each effect of
+    ``pool`` not in it added at every value of its grid, and, when the fitter fits the
+    current's timing, with the timing fixed at each of :data:`INPUT_WEIGHTS`. One is
+    rejected when its held-out error exceeds that of ``chosen`` by the paired test over
+    the blocks at :data:`COMPETITOR_ALPHA`; the others explain the run as well as
+    ``chosen`` does.
     """
     design, spec = fitter.design, chosen.spec
     specs: list[ModelSpec] = []
     for name in dict.fromkeys([*chosen.effects, *pool]):
         if name in chosen.effects or not set(effect_registry.nested_in(name)) & set(chosen.effects):
             specs += [s for s in _candidates(design, spec, name) if s != spec]
+    for name in chosen.effects:
+        outer = effect_registry.get(name)
+        specs += [s for inner in outer.nests
+                  for s in _candidates(design, outer.without(spec), inner) if s != spec]
     found = []
     for candidate in specs:
         try:

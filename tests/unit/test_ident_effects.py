@@ -9,10 +9,14 @@ import numpy as np
 import pytest
 
 from stand.cli import main
+from stand.diagnosis.signals import prepare
 from stand.errors import InputError
 from stand.excitation import excitation
-from stand.ident.derivatives import filter_held, interval_weights, kernel
-from stand.ident.identify import identify_run
+from stand.ident.columns import Design
+from stand.ident.derivatives import auto_half_width, filter_held, interval_weights, kernel
+from stand.ident.identify import INSTRUMENT_MARGIN, identify_run
+from stand.ident.noise import noise_sigma
+from stand.ident.select import Fitter, competitors, select
 from stand.ident.torque_constant import torque_constant
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
@@ -183,3 +187,17 @@ def test_torque_constant_with_friction_model_and_its_interval() -> None:
     assert any(w.startswith("too few repeats") for w in two.warnings)
     # one degree of freedom: t(0.975, 1) = 12.7 widens the interval
     assert two.Kt_ci95[1] - two.Kt_ci95[0] > r.Kt_ci95[1] - r.Kt_ci95[0]
+
+
+def test_a_stribeck_fit_counts_the_coulomb_model_it_nests_among_its_competitors() -> None:
+    # On a run of Coulomb friction a Stribeck curve fits as well: the Coulomb model it
+    # nests explains the run as well as it does, and its Kt/J is one the interval owes.
+    run = current_run({"coulomb_friction": {"Tc": 0.004}})
+    sig = prepare(run)
+    h = auto_half_width(sig.current, noise_sigma(sig.current))
+    fitter = Fitter(Design.build(sig, h, 2 * h + 1 + INSTRUMENT_MARGIN), "bc", run.source)
+    chosen = select(fitter, ["stribeck_friction"])
+    coulomb = [est for est in competitors(fitter, chosen, [])
+               if "sign" in est.names and "stribeck" not in est.names]
+    assert len(coulomb) == 1
+    assert abs(coulomb[0].value("current") / KT_OVER_J - 1) < 0.005
