@@ -5,8 +5,9 @@ Each no-load run gives ``b̂2 = Kt/J`` (eq. 11), each run with the disk ``Ĵ`` m
 
     Kt = b̃2·b̂2·Ĵ / (b̂2 − b̃2)
 
-Run ``k`` of one kind pairs with run ``k`` of the other; the result is the mean and the
-standard deviation over the repeats (5 in the seed).
+Run ``k`` of one kind pairs with run ``k`` of the other; each pair gives a Kt
+(``Kt_repeats``), and the seed reports their mean and standard deviation over the
+repeats (5 in the seed).
 
 No-load current (§5.1): a motor turning forward at no load draws a current that makes no
 acceleration (Coulomb friction ``Tc/Kt`` and viscous ``D·ω/Kt``). The model of eq. 2 has
@@ -18,11 +19,20 @@ default, ``auto``), every run is identified with the friction model of
 :mod:`stand.ident.select` instead: ``Tc·sign(ω)`` reverses with the shaft, and on a
 shaft that never reverses it is the constant §5.1 subtracts, fitted per run.
 
-Uncertainty: ``Kt_ci95`` is the mean of the pairs ± Student's t (repeats − 1 degrees of
-freedom) times the standard error of that mean. The standard deviation of one pair is
-the larger of the scatter over the pairs and the spread eq. 17 gets from each run's
-own interval (:func:`kt_std_from_runs`): two repeats that agree by chance do not make
-the answer more certain than its runs.
+With effects, the repeats of one kind are pooled before eq. 17, each run weighed by its
+precision (:func:`pooled_mean`): the runs of one stand are not equally informative (a
+speed loop whose law the run pins down gives ``Kt/J`` to 0.05 %, a repeat whose law it
+does not to 2 %), and eq. 17 on the pooled ``b̂2`` and ``b̃2`` does not carry the noisy
+runs' error into the mean as the mean over the pairs does. ``Kt_ci95`` and ``J_ci95``
+are then eq. 17's first-order spread of the two pooled means, with Student's t
+(repeats − 1 degrees of freedom). With seed 000's model (``effects='none'``), as in
+the seed, Kt is the mean over the pairs and ``Kt_ci95`` that mean ± t times its
+standard error.
+
+``Kt_std`` is the standard deviation of one pair: the larger of the scatter over the
+pairs and the spread eq. 17 gets from each run's own interval
+(:func:`kt_std_from_runs`): two repeats that agree by chance do not make the answer
+more certain than its runs.
 """
 
 from __future__ import annotations
@@ -35,7 +45,7 @@ import numpy as np
 from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES
 from stand.errors import InputError
 from stand.ident.derivatives import state_derivatives
-from stand.ident.estimate import MIN_BLOCKS, t_quantile
+from stand.ident.estimate import MIN_BLOCKS, t_interval, t_quantile
 from stand.ident.identify import IdentifyResult, identify_run
 from stand.ident.select import parse_effects
 from stand.ident.supply import DriveSupply
@@ -53,12 +63,13 @@ class TorqueConstantResult(JsonResult):
     Attributes
     ----------
     Kt : float
-        Mean torque constant over the repeats, N·m/A.
+        Torque constant, N·m/A: eq. 17 on the precision-weighted means of ``b̂2`` and
+        ``b̃2`` (with effects), or the mean over the pairs (seed 000's model).
     Kt_std : float
         Standard deviation of Kt over the repeats (one repeat: propagated standard error),
         N·m/A.
     J : float
-        Rotor inertia, ``Kt / mean(b̂2)``, kg·m².
+        Rotor inertia, ``Kt / b̂2`` (``b̂2`` pooled as for Kt), kg·m².
     D : float
         Viscous friction, ``J·mean(D/J)`` of the no-load runs, N·m·s/rad.
     C : float
@@ -143,6 +154,50 @@ def kt_std_from_runs(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyRe
     return float(np.mean(spreads))
 
 
+def pooled_mean(values: Sequence[float], ses: Sequence[float]) -> tuple[float, float]:
+    """Precision-weighted mean of repeated estimates and its variance.
+
+    Random effects (DerSimonian-Laird): each value weighs ``1/(se² + τ²)``, ``τ²`` the
+    scatter beyond the standard errors ``ses`` (0 where they explain it). The variance is
+    the larger of ``1/Σw`` and the weighted scatter about the mean (Hartung-Knapp's,
+    ``Σw·(y − ȳ)²/((n − 1)·Σw)``): values that agree by chance do not make the mean more
+    certain than their own errors, nor do small errors hide values that disagree.
+    """
+    y, s2 = np.asarray(values, dtype=float), np.asarray(ses, dtype=float) ** 2
+    n = len(y)
+    if n == 1:
+        return float(y[0]), float(s2[0])
+    # an exact run (no noise) weighs as one known to a part in 10⁹, not infinitely
+    s2 = np.maximum(s2, (1e-9 * np.abs(y)) ** 2 + np.finfo(float).tiny)
+    w = 1.0 / s2
+    mean = np.sum(w * y) / np.sum(w)
+    q = float(np.sum(w * (y - mean) ** 2))
+    tau2 = max(0.0, (q - (n - 1)) / (np.sum(w) - np.sum(w * w) / np.sum(w)))
+    w = 1.0 / (s2 + tau2)
+    mean = np.sum(w * y) / np.sum(w)
+    scatter = float(np.sum(w * (y - mean) ** 2)) / ((n - 1) * float(np.sum(w)))
+    return float(mean), max(1.0 / float(np.sum(w)), scatter)
+
+
+def _pooled_pair(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyResult],
+                 added_inertia: float, dof: int) -> tuple[float, float, list[float], list[float]]:
+    """Kt and J by eqs. 17 and 16 on the pooled ``b̂2`` and ``b̃2`` (:func:`pooled_mean`),
+    and their 95 % intervals from the two means' variances to first order."""
+    bf, var_f = pooled_mean([f.Kt_over_J for f in free], [f.Kt_over_J_se for f in free])
+    bl, var_l = pooled_mean([g.Kt_over_J for g in loaded], [g.Kt_over_J_se for g in loaded])
+    if bf <= bl:
+        raise InputError(f"Kt/J with the disk ({bl:.4g}) is not below Kt/J without it "
+                         f"({bf:.4g}), each pooled over its runs: check that the runs are "
+                         "labelled the right way round and that the disk was mounted")
+    kt = kt_from_pair(bf, bl, added_inertia)
+    J = added_inertia * bl / (bf - bl)
+    kt_se = added_inertia / (bf - bl) ** 2 * float(np.hypot(bl * bl * np.sqrt(var_f),
+                                                            bf * bf * np.sqrt(var_l)))
+    J_se = added_inertia / (bf - bl) ** 2 * float(np.hypot(bl * np.sqrt(var_f),
+                                                           bf * np.sqrt(var_l)))
+    return kt, J, t_interval(kt, kt_se, dof), t_interval(J, J_se, dof)
+
+
 def _interval(values: np.ndarray, std: float, dof: int) -> list[float]:
     """Mean of ``values`` ± t(dof)·std/√n."""
     half = t_quantile(dof) * std / np.sqrt(len(values))
@@ -224,9 +279,13 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
     kt_std = max(scatter, own)
     # One pair: the spread is the runs' own, with the fewest blocks' degrees of freedom.
     dof = repeats - 1 if repeats > 1 else MIN_BLOCKS - 1
-    J = kt_mean / float(np.mean(b_free))
-    J_pairs = kt / np.broadcast_to(b_free, kt.shape)
-    J_std = J * kt_std / kt_mean  # b̂2 is known far better than Kt
+    if seed_model:
+        J = kt_mean / float(np.mean(b_free))
+        J_pairs = kt / np.broadcast_to(b_free, kt.shape)
+        J_std = J * kt_std / kt_mean  # b̂2 is known far better than Kt
+        kt_ci95, J_ci95 = _interval(kt, kt_std, dof), _interval(J_pairs, J_std, dof)
+    else:
+        kt_mean, J, kt_ci95, J_ci95 = _pooled_pair(free, loaded, added_inertia, dof)
     warnings = []
     if repeats < MIN_REPEATS:
         warnings.append(f"too few repeats: {repeats} pair(s); the interval of Kt rests on "
@@ -244,6 +303,6 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
         Kt_repeats=[float(k) for k in kt],
         Kt_over_J_no_load=b_free.tolist(), Kt_over_J_loaded=b_load.tolist(),
         no_load_current_repeats_A=currents, added_inertia=added_inertia,
-        Kt_ci95=_interval(kt, kt_std, dof), J_ci95=_interval(J_pairs, J_std, dof),
+        Kt_ci95=kt_ci95, J_ci95=J_ci95,
         effects=found, warnings=warnings,
     )

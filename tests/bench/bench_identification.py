@@ -63,7 +63,9 @@ def _table(label: str, profile: MotorProfile, free: list, loaded: list) -> None:
 
 def kt_figures() -> None:
     profile = load_motor(PROFILE)
-    print("Kt as % of the true 0.0527 N·m/A, 5 repeats (mean, std, range), no-load current A")
+    print("Kt as % of the true 0.0527 N·m/A, 5 repeats (reported: without effects the mean "
+          "of the pairs, with them eq. 17 on the runs pooled by precision; std and range of "
+          "the pairs), no-load current A")
     print("| experiment | method | compensated | Kt % | std % | range % | i_nl A |")
     print("|---|---|---|---|---|---|---|")
     free, loaded = torque_constant_procedures(profile, repeats=5)

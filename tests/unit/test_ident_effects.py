@@ -17,7 +17,7 @@ from stand.ident.derivatives import auto_half_width, filter_held, interval_weigh
 from stand.ident.identify import INSTRUMENT_MARGIN, identify_run
 from stand.ident.noise import noise_sigma
 from stand.ident.select import Fitter, competitors, select
-from stand.ident.torque_constant import torque_constant
+from stand.ident.torque_constant import pooled_mean, torque_constant
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
@@ -187,6 +187,34 @@ def test_torque_constant_with_friction_model_and_its_interval() -> None:
     assert any(w.startswith("too few repeats") for w in two.warnings)
     # one degree of freedom: t(0.975, 1) = 12.7 widens the interval
     assert two.Kt_ci95[1] - two.Kt_ci95[0] > r.Kt_ci95[1] - r.Kt_ci95[0]
+
+
+def test_a_noisy_repeat_weighs_by_its_precision_in_the_torque_constant() -> None:
+    # Three repeats of each kind; one no-load repeat is driven by a fifth of the current
+    # under ten times the noise, and its Kt/J is 1 % off (its own interval says as much).
+    # The mean over the pairs took a third of that error (Kt -0.32 %); pooled by
+    # precision before eq. 17, Kt is within 0.1 % and its interval holds the truth.
+    J_hat = MOTOR.J
+    effects = {"coulomb_friction": {"Tc": 0.004}}
+    free = [current_run(effects, seed=s) for s in (1, 2)]
+    free.append(current_run(effects, noise_A=0.05, seed=3, amplitude=0.1))
+    loaded = [current_run(effects, seed=10 + s, J=MOTOR.J + J_hat) for s in (1, 2, 3)]
+    r = torque_constant(free, loaded, J_hat)
+    assert abs(r.Kt_over_J_no_load[2] * MOTOR.J / MOTOR.Kt - 1) > 0.005
+    assert abs(r.Kt / MOTOR.Kt - 1) < 0.001
+    assert r.Kt_ci95[0] <= MOTOR.Kt <= r.Kt_ci95[1]
+    assert r.J_ci95[0] <= MOTOR.J <= r.J_ci95[1]
+
+
+def test_pooled_mean_weighs_by_precision_and_keeps_a_disagreement() -> None:
+    # Weights 100 : 1; agreeing values keep the variance of their own errors, values
+    # that disagree beyond them widen it to their weighted scatter (Hartung-Knapp).
+    mean, var = pooled_mean([1.0, 1.1], [0.01, 0.1])
+    assert math.isclose(mean, (100 * 1.0 + 1.1) / 101, rel_tol=1e-12)
+    assert math.isclose(var, 1 / (1e4 + 1e2), rel_tol=1e-12)
+    mean, var = pooled_mean([1.0, 1.1, 0.9], [0.001, 0.001, 0.001])
+    assert math.isclose(mean, 1.0, rel_tol=1e-12)
+    assert math.isclose(var, 0.02 / 2 / 3, rel_tol=1e-9)
 
 
 def test_a_stribeck_fit_counts_the_coulomb_model_it_nests_among_its_competitors() -> None:
