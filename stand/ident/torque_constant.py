@@ -141,17 +141,22 @@ def no_load_current(run: Run, method: str = "default",
     return float(i0)
 
 
+def kt_spread(b2_no_load: float, se_no_load: float, b2_loaded: float, se_loaded: float,
+              added_inertia: float) -> float:
+    """Standard error of eq. 17's Kt from those of ``b̂2`` and ``b̃2`` (first order,
+    independent), N·m/A."""
+    bf, bl = b2_no_load, b2_loaded
+    scale = added_inertia / (bf - bl) ** 2
+    return float(np.hypot(bl * bl * scale * se_no_load, bf * bf * scale * se_loaded))
+
+
 def kt_std_from_runs(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyResult],
                      added_inertia: float) -> float:
     """Standard deviation of one pair's Kt from the runs' own standard errors (eq. 17
     to first order, mean over the pairs), N·m/A."""
-    spreads = []
-    for f, g in zip(free, loaded, strict=False):
-        bf, bl = f.Kt_over_J, g.Kt_over_J
-        dkdf = -bl * bl * added_inertia / (bf - bl) ** 2
-        dkdl = bf * bf * added_inertia / (bf - bl) ** 2
-        spreads.append(float(np.hypot(dkdf * f.Kt_over_J_se, dkdl * g.Kt_over_J_se)))
-    return float(np.mean(spreads))
+    return float(np.mean([kt_spread(f.Kt_over_J, f.Kt_over_J_se, g.Kt_over_J,
+                                    g.Kt_over_J_se, added_inertia)
+                          for f, g in zip(free, loaded, strict=False)]))
 
 
 def pooled_mean(values: Sequence[float], ses: Sequence[float]) -> tuple[float, float]:
@@ -170,13 +175,14 @@ def pooled_mean(values: Sequence[float], ses: Sequence[float]) -> tuple[float, f
     # an exact run (no noise) weighs as one known to a part in 10⁹, not infinitely
     s2 = np.maximum(s2, (1e-9 * np.abs(y)) ** 2 + np.finfo(float).tiny)
     w = 1.0 / s2
-    mean = np.sum(w * y) / np.sum(w)
-    q = float(np.sum(w * (y - mean) ** 2))
-    tau2 = max(0.0, (q - (n - 1)) / (np.sum(w) - np.sum(w * w) / np.sum(w)))
+    total = float(np.sum(w))
+    q = float(np.sum(w * (y - np.sum(w * y) / total) ** 2))
+    tau2 = max(0.0, (q - (n - 1)) / (total - float(np.sum(w * w)) / total))
     w = 1.0 / (s2 + tau2)
-    mean = np.sum(w * y) / np.sum(w)
-    scatter = float(np.sum(w * (y - mean) ** 2)) / ((n - 1) * float(np.sum(w)))
-    return float(mean), max(1.0 / float(np.sum(w)), scatter)
+    total = float(np.sum(w))
+    mean = float(np.sum(w * y)) / total
+    scatter = float(np.sum(w * (y - mean) ** 2)) / ((n - 1) * total)
+    return mean, max(1.0 / total, scatter)
 
 
 def _pooled_pair(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyResult],
@@ -191,8 +197,7 @@ def _pooled_pair(free: Sequence[IdentifyResult], loaded: Sequence[IdentifyResult
                          "labelled the right way round and that the disk was mounted")
     kt = kt_from_pair(bf, bl, added_inertia)
     J = added_inertia * bl / (bf - bl)
-    kt_se = added_inertia / (bf - bl) ** 2 * float(np.hypot(bl * bl * np.sqrt(var_f),
-                                                            bf * bf * np.sqrt(var_l)))
+    kt_se = kt_spread(bf, np.sqrt(var_f), bl, np.sqrt(var_l), added_inertia)
     J_se = added_inertia / (bf - bl) ** 2 * float(np.hypot(bl * np.sqrt(var_f),
                                                            bf * np.sqrt(var_l)))
     return kt, J, t_interval(kt, kt_se, dof), t_interval(J, J_se, dof)
