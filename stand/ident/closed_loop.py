@@ -31,7 +31,9 @@ freedom.
 The drive's current limit and, when it is told (:class:`DriveSupply`), its supply
 voltage and the armature are modelled too: the simulation
 (:class:`stand.ident.loop_model.LoopModel`) steps the drive's modes (the law, the command
-at its limit, the supply applied) through their switches within each period.
+at its limit, the supply applied; the integrator held at the limit) through their
+switches within each period. Where the fit with the supply ends in a minimum of the
+solver's own, it starts once more nearer the run (:func:`_supplied_start`).
 
 Not modelled: sticking friction (Karnopp) near zero speed.
 """
@@ -60,6 +62,11 @@ MIN_ANGLE_SD_RAD = 1e-9
 #: Most evaluations per parameter and one where the drive's supply is modelled (each
 #: steps through the mode switches; the fit starts from the one without the supply).
 SUPPLY_STEPS = 5
+#: Factors of the told armature resistance tried in a second start of the fit with the
+#: supply (1/2 … 2, log-spaced), and the share by which one must fit better than the
+#: factor nearer 1 to be taken.
+RESISTANCE_SCAN = tuple(float(f) for f in np.geomspace(0.5, 2.0, 13))
+RESISTANCE_TIE = 0.01
 #: Most evaluations of the residuals by the least-squares solver, per parameter and one
 #: (its finite-difference Jacobians included).
 MAX_EVALUATIONS = 30
@@ -206,11 +213,70 @@ def fit_closed_loop(theta: np.ndarray, current: np.ndarray, target: np.ndarray, 
         # the law trimmed of the saturated samples must beat none in the simulation too
         undelayed = LoopModel(measured, current, target, inputs, dt, 0, angle_sd,
                                current_sd, bool(np.isfinite(limit)), True)
-        start[9] = current[0]
-        fit0, p0 = _solve(undelayed, start, dt, SUPPLY_STEPS)
+        start0 = start.copy()
+        start0[9] = current[0]
+        fit0, p0 = _solve(undelayed, start0, dt, SUPPLY_STEPS)
         if not _fits_better(supplied, p, undelayed, p0):
-            return fit0
+            fit, start, supplied = fit0, start0, undelayed
+    if not fit.holds:
+        # a minimum of the solver's own: once more from a start nearer the run
+        restart = _supplied_start(supplied, start, dt, saturated, supply.current_limit_A)
+        again = _solve(supplied, restart, dt, SUPPLY_STEPS)[0]
+        if again.current_ratio < fit.current_ratio:
+            fit = again
     return fit
+
+
+def _supplied_start(model: LoopModel, start: np.ndarray, dt: float, saturated: bool,
+                    limit_A: float) -> np.ndarray:
+    """A second start of the fit with the drive's supply, where the first one ends in a
+    minimum of the solver's own: a sequence of the drive's modes that is not the run's,
+    the armature's ratios run off to where the supply never binds.
+
+    - Where the law was refused (``saturated``), the effects' coefficients start at none
+      (the equation error chose them on a current whose kicks the samples miss), and
+      the current limit at the told ``limit_A`` (where the supply runs out first, the
+      samples show the current the supply drives, not the limit).
+    - The armature's resistance is scaled by the factor of :data:`RESISTANCE_SCAN`
+      whose simulation fits the run best (nearest the told value among equals): where
+      the supply runs out the current follows ``(V − Kt·ω)/R``, and the resistance is
+      the profile's least known value (a winding's rises by some 40 % from cold to hot).
+    - The loop and the mechanics are fitted with the armature and the limit held there
+      (a law fitted on the samples the supply leaves to it misses the integrator the
+      drive holds at its limit, and its gains are off)."""
+    assert model.supply_at is not None
+    at = model.supply_at
+    start = start.copy()
+    if saturated:
+        start[model.FIXED:at] = 0.0
+        if model.limited and np.isfinite(limit_A):
+            start[-1] = limit_A
+    best, best_sse = start, float(np.sum(model.residuals(start) ** 2))
+    for factor in sorted(RESISTANCE_SCAN, key=lambda f: abs(np.log(f))):
+        trial = start.copy()
+        trial[at + 1] += np.log(factor)
+        sse = float(np.sum(model.residuals(trial) ** 2))
+        if sse < (1.0 - RESISTANCE_TIE) * best_sse:
+            best, best_sse = trial, sse
+    free = np.arange(len(best)) < at
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        return model.residuals(np.concatenate([q, best[at:]]))
+
+    res = least_squares(residuals, best[free], x_scale=_scale(best, dt, model)[free],
+                        method="lm", max_nfev=SUPPLY_STEPS * (at + 1))
+    return np.concatenate([res.x, best[at:]])
+
+
+def _scale(start: np.ndarray, dt: float, model: LoopModel) -> np.ndarray:
+    """The solver's scale of each parameter: its start's size; 1 for the logarithms (the
+    lag, the armature's ratios), ``dt`` for the encoder's timing."""
+    scale = np.abs(start)
+    scale[scale == 0] = 1.0
+    scale[4], scale[10] = 1.0, dt
+    if model.supply_at is not None:
+        scale[model.supply_at:model.supply_at + 3] = 1.0
+    return scale
 
 
 def _fits_better(model: LoopModel, p: np.ndarray, other: LoopModel,
@@ -236,33 +302,32 @@ def _solve(model: LoopModel, start: np.ndarray, dt: float,
            evaluations: int) -> tuple[ClosedLoopFit, np.ndarray]:
     """Levenberg-Marquardt from ``start`` (at most ``evaluations`` per parameter and one),
     and the fit with its block-sandwich covariance; also the parameters."""
-    scale = np.abs(start)
-    scale[scale == 0] = 1.0
-    scale[4], scale[10] = 1.0, dt
-    if model.supply_at is not None:
-        scale[model.supply_at:model.supply_at + 3] = 1.0
+    scale = _scale(start, dt, model)
     res = least_squares(model.residuals, start, x_scale=scale, method="lm",
                         max_nfev=evaluations * (len(start) + 1))
     p, J, e = res.x, res.jac, res.fun
     n_angle = len(model.theta)
-    current_ratio = float(np.sqrt(np.mean(e[n_angle:] ** 2)))
-    angle_ratio = float(np.sqrt(np.mean(e[:n_angle] ** 2)))
     blocks = BLOCKS
     edges = np.linspace(0, n_angle, blocks + 1)
     block_of = np.searchsorted(edges, model.sample_of_row(), side="right") - 1
-    # in the solver's scaled coordinates (the parameters span many decades); a column the
-    # run does not excite (an effect's column zero throughout) is left out
-    Js = J * scale[None, :]
-    used = np.flatnonzero(np.linalg.norm(Js, axis=0) > 0)
-    Js = Js[:, used]
-    scores = np.stack([Js[block_of == b].T @ e[block_of == b] for b in range(blocks)])
-    S = scores.T @ scores * blocks / (blocks - 1)
     cov = np.full((len(p), len(p)), np.nan)
-    try:
-        Hinv = np.linalg.inv(Js.T @ Js)
-        cov[np.ix_(used, used)] = (Hinv @ S @ Hinv) * np.outer(scale[used], scale[used])
-    except np.linalg.LinAlgError:
-        pass
+    # a fit that ended where the loop diverges overflows here: its covariance stays
+    # undefined, and it does not hold
+    with np.errstate(over="ignore", invalid="ignore"):
+        current_ratio = float(np.sqrt(np.mean(e[n_angle:] ** 2)))
+        angle_ratio = float(np.sqrt(np.mean(e[:n_angle] ** 2)))
+        # in the solver's scaled coordinates (the parameters span many decades); a
+        # column the run does not excite (an effect's column zero throughout) is left out
+        Js = J * scale[None, :]
+        used = np.flatnonzero(np.linalg.norm(Js, axis=0) > 0)
+        Js = Js[:, used]
+        scores = np.stack([Js[block_of == b].T @ e[block_of == b] for b in range(blocks)])
+        S = scores.T @ scores * blocks / (blocks - 1)
+        try:
+            Hinv = np.linalg.inv(Js.T @ Js)
+            cov[np.ix_(used, used)] = (Hinv @ S @ Hinv) * np.outer(scale[used], scale[used])
+        except (np.linalg.LinAlgError, ValueError):
+            pass
     holds = bool(res.status >= 0 and current_ratio <= MAX_CURRENT_RATIO and p[0] > 0
                  and np.isfinite(cov[0, 0]))
     message = "" if holds else (

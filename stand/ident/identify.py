@@ -377,13 +377,17 @@ def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
                  sigma: float, supply: DriveSupply | None,
                  warnings: list[str]) -> ClosedLoopFit | None:
     """The output-error refinement of a speed-loop run (:mod:`stand.ident.closed_loop`),
-    started from ``est``, where its loop law holds or the drive's supply is known; else
-    None (a law refused for a reason the simulation does not model leaves it no start
-    it can be trusted to reach the loop from). Where the law holds on all but some samples
-    and the supply is not known, a warning says the supply could not be modelled. None
-    too where the law holds only with its integrator fitted anew after each stretch at
-    the current limit (``loop.resets``): the simulation's integrator runs on through the
-    limit (:func:`_extended` tries the simulation with the supply first)."""
+    started from ``est``, where its loop law holds or the drive's supply is known.
+
+    Where the law is refused, the law fitted on the samples outside the saturated
+    stretches starts the simulation with the supply, even where it does not hold on
+    those samples either (a drive holds its integrator at the limit, which leaves the
+    law after each stretch; the simulation models that and refits the gains, and its fit
+    is used only where it explains the run). Without the supply: None, with a warning
+    that the supply could not be modelled where that trimmed law holds. None too where
+    the law holds only with its integrator fitted anew after each stretch at the current
+    limit (``loop.resets``): that law's current stands (:func:`_extended` tries the
+    simulation with the supply first)."""
     if loop.resets:
         return None
     theta = run["position_rad"]
@@ -393,10 +397,9 @@ def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
         # (those outside the saturated stretches) starts the simulation that models them
         loop = fit_speed_loop(theta, run["current_A"], run[TARGET_COLUMN], run.dt_s,
                               quantization_step(theta), trim=True)
-        if not loop.holds:
-            return None
         if supply is None:
-            warnings.append(SUPPLY_UNKNOWN)
+            if loop.holds:
+                warnings.append(SUPPLY_UNKNOWN)
             return None
     names = [name for name in spec.names() if name not in ("current", "one")]
     start = np.array([est.value(name) for name in names])

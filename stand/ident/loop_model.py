@@ -3,7 +3,9 @@ fitted parameters (:class:`LoopModel`, for :mod:`stand.ident.closed_loop`).
 
 The drive is in one of five modes between two samples: the PI law's command followed
 with the current loop's lag, the command held at ``±`` the current limit, or ``±`` the
-supply voltage applied to the armature (``L·i' = ±V − R·i − Kt·ω``). Within each mode the
+supply voltage applied to the armature (``L·i' = ±V − R·i − Kt·ω``); and in each of them
+the speed loop's integrator runs, or is held at ``±`` the current limit while the error
+would wind it beyond (the drive's clamp against wind-up). Within each mode the
 system is linear and its exact zero-order-hold step is taken in modal form; a stretch of
 periods in one mode is four first-order recursions, and a period within which the mode
 changes is stepped through its switches, each located within the period.
@@ -36,6 +38,12 @@ FIRST_STRETCH = 64
 #: the command clipped at the current limit ``±L`` (followed with ``τ``), and the supply
 #: voltage ``±V`` applied (the armature's own dynamics).
 LAW, LIMIT_UP, LIMIT_DOWN, SUPPLY_UP, SUPPLY_DOWN = range(5)
+#: Added to a mode where the drive holds the speed loop's integrator at ``±`` the current
+#: limit (a clamp against wind-up: the integrator stops while the error pushes it
+#: beyond the limit, and runs again once the error turns).
+HELD_UP, HELD_DOWN = 5, 10
+#: Relative tolerance within which the integrator counts as at its limit.
+HELD_TOLERANCE = 1e-9
 
 
 class _Mode:
@@ -107,7 +115,7 @@ class LoopModel:
         law_A, law_B = A.copy(), B.copy()
         law_A[3] = [0.0, -kp / tau, 1.0 / tau, -1.0 / tau]
         law_B[3, 0] = kp / tau
-        modes = {LAW: _Mode(law_A, law_B)}
+        systems = {LAW: (law_A, law_B)}
         if self.limited:
             limit = p[-1]
             clip_A = A.copy()
@@ -115,7 +123,7 @@ class LoopModel:
             for mode, side in ((LIMIT_UP, 1.0), (LIMIT_DOWN, -1.0)):
                 clip_B = B.copy()
                 clip_B[3, -1] = side * limit / tau
-                modes[mode] = _Mode(clip_A, clip_B)
+                systems[mode] = (clip_A, clip_B)
         if self.supply_at is not None:
             volts, ohms, emf = np.exp(np.clip(p[self.supply_at:self.supply_at + 3], -50, 50))
             arm_A = A.copy()
@@ -123,7 +131,15 @@ class LoopModel:
             for mode, side in ((SUPPLY_UP, 1.0), (SUPPLY_DOWN, -1.0)):
                 arm_B = B.copy()
                 arm_B[3, -1] = side * volts
-                modes[mode] = _Mode(arm_A, arm_B)
+                systems[mode] = (arm_A, arm_B)
+        modes = {mode: _Mode(*system) for mode, system in systems.items()}
+        if self.limited:
+            # the integrator held at the limit: I' = 0
+            for mode, (sys_A, sys_B) in systems.items():
+                held_A, held_B = sys_A.copy(), sys_B.copy()
+                held_A[2], held_B[2] = 0.0, 0.0
+                held = _Mode(held_A, held_B)
+                modes[mode + HELD_UP] = modes[mode + HELD_DOWN] = held
         return modes
 
     def _bounds(self, p: np.ndarray) -> tuple[float, float, float, float, float, float]:
@@ -149,7 +165,8 @@ class LoopModel:
 
     def mode_of(self, x: np.ndarray, r: np.ndarray | float,
                 b: tuple[float, float, float, float, float, float]) -> np.ndarray:
-        """The drive's mode at states ``x`` under targets ``r``."""
+        """The drive's mode at states ``x`` under targets ``r`` (the integrator's
+        hold added: :data:`HELD_UP`, :data:`HELD_DOWN`)."""
         command, need = self._demand(x, r, b)
         limit, volts = b[2], b[3]
         mode = np.full(np.shape(command), LAW)
@@ -157,6 +174,11 @@ class LoopModel:
         mode[command < -limit] = LIMIT_DOWN
         mode[need > volts] = SUPPLY_UP
         mode[need < -volts] = SUPPLY_DOWN
+        if np.isfinite(limit):
+            error = r - x[..., 1]
+            at = limit * (1.0 - HELD_TOLERANCE)
+            mode = mode + np.where((x[..., 2] >= at) & (error > 0), HELD_UP, 0)
+            mode = mode + np.where((x[..., 2] <= -at) & (error < 0), HELD_DOWN, 0)
         return mode
 
     def _margins(self, mode: int, x: np.ndarray, r: float,
@@ -165,16 +187,23 @@ class LoopModel:
         (columns; positive inside)."""
         command, need = self._demand(x, r, b)
         limit, volts = b[2], b[3]
-        if mode == SUPPLY_UP:
-            return (need - volts)[:, None]
-        if mode == SUPPLY_DOWN:
-            return (-need - volts)[:, None]
+        drive, hold = mode % HELD_UP, mode - mode % HELD_UP
+        if hold == HELD_UP:
+            held = (r - x[:, 1])[:, None]
+        elif hold == HELD_DOWN:
+            held = (x[:, 1] - r)[:, None]
+        else:
+            held = (limit - np.abs(x[:, 2]))[:, None] if np.isfinite(limit) else x[:, :0]
+        if drive == SUPPLY_UP:
+            return np.column_stack([need - volts, held])
+        if drive == SUPPLY_DOWN:
+            return np.column_stack([-need - volts, held])
         supply = volts - np.abs(need)
-        if mode == LIMIT_UP:
-            return np.column_stack([command - limit, supply])
-        if mode == LIMIT_DOWN:
-            return np.column_stack([-command - limit, supply])
-        return np.column_stack([limit - np.abs(command), supply])
+        if drive == LIMIT_UP:
+            return np.column_stack([command - limit, supply, held])
+        if drive == LIMIT_DOWN:
+            return np.column_stack([-command - limit, supply, held])
+        return np.column_stack([limit - np.abs(command), supply, held])
 
     def _period(self, x: np.ndarray, k: int, modes: dict[int, _Mode],
                 b: tuple[float, float, float, float, float, float],
@@ -212,6 +241,9 @@ class LoopModel:
             new = int(self.mode_of(x, r, b))
             # just short of the switch: the mode beyond it
             mode = new if new != mode else int(self.mode_of(states[j], r, b))
+            if mode >= HELD_UP:   # the integrator reaches its limit: held there
+                x = x.copy()
+                x[2] = b[2] if mode < HELD_DOWN else -b[2]
             events += 1
         return x
 
@@ -292,10 +324,12 @@ class LoopModel:
         if x is None or not np.all(np.isfinite(x)):
             # a solver step into an unstable or undefined loop: a residual it must reject
             return np.full(len(self.theta) + self.rows, DIVERGED_RESIDUAL)
-        angle = (x[:, 0] + p[10] * x[:, 1] - self.theta) / self.angle_sd
-        model_i = x[: self.rows, 3] + p[5]
-        current = (model_i - self.current[self.delay:]) / self.current_sd
-        return np.concatenate([angle, current])
+        with np.errstate(over="ignore", invalid="ignore"):
+            angle = (x[:, 0] + p[10] * x[:, 1] - self.theta) / self.angle_sd
+            model_i = x[: self.rows, 3] + p[5]
+            current = (model_i - self.current[self.delay:]) / self.current_sd
+        rows = np.concatenate([angle, current])
+        return rows if np.all(np.isfinite(rows)) else np.full(len(rows), DIVERGED_RESIDUAL)
 
     def sample_of_row(self) -> np.ndarray:
         """The sample each residual row belongs to (for the blocks)."""

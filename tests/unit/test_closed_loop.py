@@ -24,7 +24,7 @@ from stand.ident.noise import noise_sigma
 from stand.ident.speed_loop import TARGET_COLUMN, speed_loop
 from stand.ident.supply import DriveSupply, motor_supply
 from stand.physics.effects import Effects
-from stand.physics.parts import DriveParams, SensorParams
+from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, write_run
@@ -166,3 +166,54 @@ def test_cli_motor_profile_tells_the_supply(tmp_path: Path, capsys: Any) -> None
     assert json.loads(capsys.readouterr().out)["Kt_over_J"] > 0
     assert main(["identify", str(path), "--motor", "no_such_motor"]) == 2
     assert "no_such_motor" in capsys.readouterr().err
+
+
+def test_the_integrator_held_at_the_current_limit_is_simulated() -> None:
+    # A 20 Hz loop at a 1 A limit: each reversal's kick holds the command at the limit
+    # for some 50 ms, and the drive holds its integrator there too (it would wind up to
+    # 4 A). Simulated with the true parameters and no noise, the loop follows the plant
+    # to 0.4 mA and 1.2e-5 rad; with an integrator that runs on through the limit
+    # (before) it is 0.96 A and 2 rad off.
+    dt, limit = 3e-3, 1.0
+    kp = 2 * math.pi * 20.0 * MOTOR.J / MOTOR.Kt
+    drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=limit, speed_kp=kp,
+                        speed_ki=kp * 2 * math.pi * 20.0 / 5)
+    plant = MotorPlant(MOTOR, drive, SensorParams(encoder_lines=0, current_noise_A=0.0),
+                       Effects(), seed=3)
+    command = excitation("prbs", int(6.0 / dt), dt, 0.0, 60.0, int(0.2 / dt), seed=3)
+    run = simulate_motor(plant, "speed", command, dt)
+    theta, current = run["position_rad"], run["current_A"]
+    assert np.mean(np.abs(current) > 0.99 * limit) > 0.05
+    model = loop_model.LoopModel(theta, current, run[TARGET_COLUMN],
+                                 np.zeros((len(theta) - 1, 0)), dt, 0, 1e-3, 1e-3, True)
+    p = np.array([KT_OVER_J, MOTOR.D / MOTOR.J, drive.speed_kp, drive.speed_ki,
+                  np.log(drive.current_tau_s), 0, theta[0], 0, 0, current[0], 0, limit])
+    x = model.states(p)
+    assert np.max(np.abs(x[:, 3] - current)) < 1e-3
+    assert np.max(np.abs(x[:, 0] - theta)) < 1e-4
+
+
+def test_a_fit_with_the_supply_that_misses_the_run_starts_once_more() -> None:
+    # A 16 Hz loop on a 48 V drive whose kicks need some 85 V: the supply binds for
+    # 30 ms after each reversal, and the loop law is refused. Told R 19 % low (L, Kt
+    # 18 % and 15 % high), the fit with the supply from the law's start ends in a
+    # minimum of its own (the simulation explains the current only to twice its noise);
+    # the second start (the effects the equation error chose at none, the resistance
+    # scanned, the loop fitted with the armature held) reaches the run: Kt/J within
+    # 0.5 %, inside its interval, and no warning.
+    motor = MotorParams(R=3.25, L=2e-4, Kt=0.023, J=3.3e-4, D=4.1e-4)
+    dt, loop_hz = 4e-3, 15.8
+    kp = 2 * math.pi * loop_hz * 2.06e-4 / motor.Kt
+    drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=26.0, speed_kp=kp,
+                        speed_ki=kp * 2 * math.pi * loop_hz / 5)
+    plant = MotorPlant(motor, drive, SensorParams(encoder_lines=2000, current_noise_A=0.02),
+                       Effects(), seed=3)
+    command = excitation("prbs", int(8.0 / dt), dt, 0.0, 26.0, 70, seed=3)
+    run = simulate_motor(plant, "speed", command, dt)
+    assert np.max(np.abs(run["voltage_V"])) >= 48.0 * 0.999
+    told = DriveSupply(48.0, motor.R * 0.81, motor.L * 1.18, motor.Kt * 1.15, 26.0)
+    r = identify_run(run, supply=told)
+    truth = motor.Kt / motor.J
+    assert abs(r.Kt_over_J / truth - 1) < 0.005
+    assert r.Kt_over_J_ci95[0] <= truth <= r.Kt_over_J_ci95[1]
+    assert not any("explains the current only" in w for w in r.warnings)
