@@ -251,19 +251,18 @@ def _supplied_start(model: LoopModel, start: np.ndarray, dt: float, saturated: b
         start[model.FIXED:at] = 0.0
         if model.limited and np.isfinite(limit_A):
             start[-1] = limit_A
-    best, best_sse = start, float(np.sum(model.residuals(start) ** 2))
-    for factor in sorted(RESISTANCE_SCAN, key=lambda f: abs(np.log(f))):
+    best, best_sse = start, np.inf
+    for factor in sorted(RESISTANCE_SCAN, key=lambda f: abs(np.log(f))):   # 1 first
         trial = start.copy()
         trial[at + 1] += np.log(factor)
         sse = float(np.sum(model.residuals(trial) ** 2))
         if sse < (1.0 - RESISTANCE_TIE) * best_sse:
             best, best_sse = trial, sse
-    free = np.arange(len(best)) < at
 
     def residuals(q: np.ndarray) -> np.ndarray:
         return model.residuals(np.concatenate([q, best[at:]]))
 
-    res = least_squares(residuals, best[free], x_scale=_scale(best, dt, model)[free],
+    res = least_squares(residuals, best[:at], x_scale=_scale(best, dt, model)[:at],
                         method="lm", max_nfev=SUPPLY_STEPS * (at + 1))
     return np.concatenate([res.x, best[at:]])
 
