@@ -34,6 +34,10 @@ class DriveSupply:
         Torque constant, N·m/A, equal to the back-EMF constant in V·s/rad (start value).
     current_limit_A : float
         The drive's current limit, A (start value; infinite: none known).
+    speed_kp, speed_ki : float or None
+        The drive's speed-loop gains, A per rad/s and A per rad (start values of a
+        second start where the fit from the law's gains misses the run; None: not
+        known).
     """
 
     supply_V: float
@@ -41,24 +45,29 @@ class DriveSupply:
     L: float
     Kt: float
     current_limit_A: float = math.inf
+    speed_kp: float | None = None
+    speed_ki: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("supply_V", "R", "L", "Kt", "current_limit_A"):
+        optional = [name for name in ("speed_kp", "speed_ki") if getattr(self, name) is not None]
+        for name in ("supply_V", "R", "L", "Kt", "current_limit_A", *optional):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and value > 0 and not math.isnan(value)):
                 raise InputError(f"drive supply: {name} must be a number > 0, got {value!r}")
-        for name in ("supply_V", "R", "L", "Kt"):
+        for name in ("supply_V", "R", "L", "Kt", *optional):
             if math.isinf(getattr(self, name)):
                 raise InputError(f"drive supply: {name} must be finite, got inf")
 
 
 def motor_supply(name_or_path: str | None) -> DriveSupply | None:
-    """The supply and current limit of motor profile ``name_or_path``'s drive, and its
-    motor's ``R``, ``L``, ``Kt`` (:func:`stand.profiles.load_motor`); None for None."""
+    """The supply, current limit and speed-loop gains of motor profile
+    ``name_or_path``'s drive, and its motor's ``R``, ``L``, ``Kt``
+    (:func:`stand.profiles.load_motor`); None for None."""
     if name_or_path is None:
         return None
     from stand.profiles import load_motor
 
     profile = load_motor(name_or_path)
-    return DriveSupply(profile.drive.supply_V, profile.motor.R, profile.motor.L,
-                       profile.motor.Kt, profile.drive.current_limit_A)
+    drive = profile.drive
+    return DriveSupply(drive.supply_V, profile.motor.R, profile.motor.L, profile.motor.Kt,
+                       drive.current_limit_A, drive.speed_kp or None, drive.speed_ki or None)

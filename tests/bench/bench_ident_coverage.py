@@ -144,12 +144,13 @@ PROFILE_ERROR = 1.25
 
 
 def told_supply(stand: dict[str, Any], rng: np.random.Generator) -> DriveSupply:
-    """What a user knows of ``stand``'s drive: its supply and current limit exactly, and
-    R, L, Kt off by up to :data:`PROFILE_ERROR` either way (log-uniform)."""
+    """What a user knows of ``stand``'s drive: its supply, current limit and speed-loop
+    gains exactly (settings), and R, L, Kt off by up to :data:`PROFILE_ERROR` either way
+    (log-uniform)."""
     motor, drive = stand["motor"], stand["drive"]
     off = [_log_uniform(rng, 1 / PROFILE_ERROR, PROFILE_ERROR) for _ in range(3)]
     return DriveSupply(drive.supply_V, motor.R * off[0], motor.L * off[1], motor.Kt * off[2],
-                       drive.current_limit_A)
+                       drive.current_limit_A, drive.speed_kp, drive.speed_ki)
 
 
 def case_mode(index: int, seed: int) -> str:
