@@ -41,6 +41,14 @@ from stand.diagnosis.signals import Signals
 MAX_RATE_STEP = 0.1
 #: Most sub-steps per sample in the simulation.
 MAX_SUBSTEPS = 20
+#: Sub-steps per sample of a model whose backlash gap the run's top speed crosses within
+#: a sample. The contact is found at the end of a sub-step, so the impact comes late by
+#: up to a sub-step and the momentum it shares with it: an error of the free run that
+#: falls as 1/sub-steps. With every parameter at its true value, on a current-mode run
+#: sampled every 4.3 ms (seed 260 case 184) the holdout gap was 1.14 % at 1 sub-step,
+#: 0.69 % at 2, 0.59 % at 3, 0.55 % at 5, 0.53 % at 10 and at 20 (nominal model 1.45 %);
+#: each sub-step costs about 0.06 s of the 20 s timing case's diagnosis.
+BACKLASH_SUBSTEPS = 4
 #: Least friction smoothing speed, as a fraction of the run's 95th-percentile speed.
 FRICTION_SMOOTHING_FRACTION = 1e-3
 
@@ -159,7 +167,9 @@ class _Stepper:
         top = float(np.max(np.abs(sig.omega_f)))
         rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
                    (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
-        self.n_sub = int(min(MAX_SUBSTEPS, max(1, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
+        # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
+        contact = min(BACKLASH_SUBSTEPS, math.ceil(top * sig.dt_s / self.gap)) if self.gap else 1
+        self.n_sub = int(min(MAX_SUBSTEPS, max(contact, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
         self.h = sig.dt_s / self.n_sub
         # The speed's own rate c_ω stepped exactly: over a sub-step the speed relaxes at
         # that rate towards what the other terms (held over the sub-step) drive it to.

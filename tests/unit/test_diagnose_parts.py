@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from stand.cli import main
-from stand.diagnosis import diagnose, input_weight, model
+from stand.diagnosis import diagnose, input_weight
 from stand.diagnosis.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, agree, search
 from stand.diagnosis.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
-from stand.diagnosis.signals import Signals, prepare, quantization_step
+from stand.diagnosis.signals import prepare, quantization_step
 from stand.diagnosis.significance import paired_improvement
 from stand.diagnosis.simulate import segments, simulate
 from stand.effects import backlash
@@ -223,12 +223,13 @@ def test_the_simulation_steps_the_speed_rate_exactly() -> None:
 
 def test_a_dead_zone_of_a_few_counts_is_no_backlash(monkeypatch: pytest.MonkeyPatch) -> None:
     """Quantization alone looks like a dead zone of a few counts at every reversal of a
-    sine. On this effect-free current-loop sine, with the search from two counts and
-    the rows at each reversal's rest in the fit, a backlash of two counts of half-gap
-    shrank the gap by 6 % (p 4e-4), and HOLDOUT's own search agreed: a false alarm. The
-    search starts at ``MIN_GAP_COUNTS``, and the fits leave out the rows within the
-    filter's reach of a stretch at rest (``model.fit_rows``): each guard alone keeps
-    the verdict ``none``."""
+    sine. On this effect-free current-loop sine a backlash of two counts of half-gap
+    shrinks the gap by 8 % (p 7e-5), and HOLDOUT's own search agrees: a false alarm,
+    although the rows within the filter's reach of a stretch at rest are left out of the
+    fits (``model.fit_rows``). The search starts at ``MIN_GAP_COUNTS``, which keeps the
+    verdict ``none``. (Before the free run found the impact within the sample period,
+    the left-out rows alone kept it ``none`` too: the late impact made a two-count dead
+    zone simulate worse.)"""
     # a ±15.6 mA sine at 0.61 Hz (±11.3 mA at 0.47 Hz on HOLDOUT) on a small motor, a
     # 1024-line encoder, 2.52 ms sampling, 10 s runs
     train, holdout = stand_runs(
@@ -239,12 +240,6 @@ def test_a_dead_zone_of_a_few_counts_is_no_backlash(monkeypatch: pytest.MonkeyPa
     assert diagnose(train, holdout).verdict == "none"
     floor = backlash.MIN_GAP_COUNTS
     monkeypatch.setattr(backlash, "MIN_GAP_COUNTS", 2)
-    assert diagnose(train, holdout).verdict == "none"
-
-    def every_row(sig: Signals, delay: int) -> np.ndarray:
-        return np.arange(model.EDGE_SAMPLES, len(sig) - model.EDGE_SAMPLES - delay)
-
-    monkeypatch.setattr(model, "fit_rows", every_row)
     result = diagnose(train, holdout)
     assert result.verdict.split("+")[0] == "backlash", result.message
     gap = next(e for e in result.effects if e.effect == "backlash").params["gap"]
