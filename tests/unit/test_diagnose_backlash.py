@@ -18,8 +18,8 @@ def test_the_exact_backlash_model_follows_a_gap_crossed_within_a_sample() -> Non
     # the rotor's inertia behind ± 0.022 rad, crossed in about one sample at the run's
     # speeds. The model with the true parameters, every one of them, stepped once a
     # sample found the impact only at the sample's end and shared the momentum late:
-    # its holdout gap was 1.13 % against the nominal model's 1.45 % (shrink 0.22). With
-    # the impact inside the period it is about 0.55 % (shrink above 0.5).
+    # its holdout gap was 1.14 % against the nominal model's 1.45 % (shrink 0.22). With
+    # the impact inside the period it is 0.58 % (shrink 0.60).
     case, train, holdout = case_runs(184, 260, held_out=True)
     motor = case.motor
     planted = Effects.from_mapping(case.effects, "planted effects")
