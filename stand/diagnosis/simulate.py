@@ -169,7 +169,7 @@ class _Stepper:
                    (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
         # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
         contact = min(BACKLASH_SUBSTEPS, math.ceil(top * sig.dt_s / self.gap)) if self.gap else 1
-        self.n_sub = int(min(MAX_SUBSTEPS, max(contact, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
+        self.n_sub = int(min(MAX_SUBSTEPS, max(1, contact, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
         self.h = sig.dt_s / self.n_sub
         # The speed's own rate c_ω stepped exactly: over a sub-step the speed relaxes at
         # that rate towards what the other terms (held over the sub-step) drive it to.

@@ -243,12 +243,11 @@ def _supplied_start(model: LoopModel, start: np.ndarray, dt: float, saturated: b
       misses the integrator the drive holds at its limit, and its gains can be off by
       a factor of 2–20).
     - The armature's resistance is scaled by the factor of :data:`RESISTANCE_SCAN`
-      whose simulation fits the run best (nearest the told value among equals): where
+      whose simulation fits the run best (nearest the told value among equals), then
+      refined between that factor's neighbours (:func:`_resistance_refined`): where
       the supply runs out the current follows ``(V − Kt·ω)/R``, and the resistance is
       the profile's least known value (a winding's rises by some 40 % from cold to hot).
-    - The loop and the mechanics are fitted with the armature and the limit held there
-      (a law fitted on the samples the supply leaves to it misses the integrator the
-      drive holds at its limit, and its gains are off)."""
+    - The loop and the mechanics are fitted with the armature and the limit held there."""
     assert model.supply_at is not None
     at = model.supply_at
     start = start.copy()
@@ -260,9 +259,8 @@ def _supplied_start(model: LoopModel, start: np.ndarray, dt: float, saturated: b
             start[2:4] = supply.speed_kp, supply.speed_ki
     best, best_sse = start, np.inf
     for factor in sorted(RESISTANCE_SCAN, key=lambda f: abs(np.log(f))):   # 1 first
-        trial = start.copy()
-        trial[at + 1] += np.log(factor)
-        sse = float(np.sum(model.residuals(trial) ** 2))
+        trial = _resistance_scaled(model, start, np.log(factor))
+        sse = _sse(model, trial)
         if sse < (1.0 - RESISTANCE_TIE) * best_sse:
             best, best_sse = trial, sse
     best = _resistance_refined(model, best, best_sse)
@@ -281,19 +279,24 @@ def _resistance_refined(model: LoopModel, p: np.ndarray, sse: float) -> np.ndarr
     runs out for long the basin is narrower than the scan's step (seed 21 stand 14, a
     loaded run: ×0.794 of the told value leaves the current 1.3e6 in squared residuals,
     ×0.841, the truth, 2.7e3), and the fit from the scan's factor stays beside it."""
-    at = model.supply_at
-    assert at is not None
     step = np.log(RESISTANCE_SCAN[1] / RESISTANCE_SCAN[0])
-
-    def trial(offset: float) -> np.ndarray:
-        q = p.copy()
-        q[at + 1] += offset
-        return q
-
-    found = minimize_scalar(lambda x: float(np.sum(model.residuals(trial(x)) ** 2)),
+    found = minimize_scalar(lambda x: _sse(model, _resistance_scaled(model, p, x)),
                             bounds=(-step, step), method="bounded",
                             options={"xatol": RESISTANCE_XTOL})
-    return trial(float(found.x)) if found.fun < sse else p
+    return _resistance_scaled(model, p, float(found.x)) if found.fun < sse else p
+
+
+def _resistance_scaled(model: LoopModel, p: np.ndarray, log_factor: float) -> np.ndarray:
+    """``p`` with the armature's resistance scaled by ``exp(log_factor)``."""
+    assert model.supply_at is not None
+    q = p.copy()
+    q[model.supply_at + 1] += log_factor
+    return q
+
+
+def _sse(model: LoopModel, p: np.ndarray) -> float:
+    """Sum of the squared residuals of ``model`` at ``p``."""
+    return float(np.sum(model.residuals(p) ** 2))
 
 
 def _scale(start: np.ndarray, dt: float, model: LoopModel) -> np.ndarray:
