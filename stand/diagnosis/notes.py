@@ -12,8 +12,13 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis.signals import Signals
-from stand.effects.coulomb_friction import CoulombFriction
+from stand.effects.coulomb_friction import (
+    MAX_LEVEL_SLOPE_FACTOR,
+    CoulombFriction,
+    level_slope_factor,
+)
 from stand.effects.current_offset import CurrentOffset
+from stand.effects.stribeck_friction import StribeckFriction
 
 #: Share of moving samples below which a direction of rotation counts as absent.
 ONE_DIRECTION_SHARE = 0.01
@@ -33,6 +38,16 @@ def limits(train: Signals, tone_hz: float | None) -> list[str]:
         notes.append(f"the shaft turns one way only on TRAIN: {CoulombFriction.name} and "
                      f"{CurrentOffset.name} are the same constant torque there and cannot be "
                      "told apart (record a run that reverses)")
+    factor = level_slope_factor(train.omega_f)
+    if factor > MAX_LEVEL_SLOPE_FACTOR:
+        notes.append(f"the speed on TRAIN holds nearly one magnitude (median |ω| "
+                     f"{np.median(np.abs(train.omega_f)):.3g} rad/s): a friction torque that "
+                     f"does not grow with the speed ({CoulombFriction.name}, "
+                     f"{StribeckFriction.name}) and the viscous slope D/J are nearly one "
+                     f"column there (the variance of their split is {factor:.0f} times "
+                     "what two orthogonal columns give), so a friction may go unnamed or "
+                     "its level and D/J come out far off (record a run at "
+                     "several speeds, e.g. a staircase or a ramp of the speed target)")
     if tone_hz is not None:
         notes.append(f"the current on TRAIN is one frequency ({tone_hz:.3g} Hz): a delay of the "
                      "current cannot be told from Kt/J and D/J there, so it is picked across "

@@ -6,9 +6,39 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
+import numpy as np
+
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
 from stand.effects.base import REVERSING_COMMAND, Effect, Params, Simulated, fitted, need, ratio_ok, torque
+
+#: :func:`level_slope_factor` above which a run counts as holding one speed magnitude (a
+#: diagnosis notes it, an identification warns): the variance of the split of a friction
+#: level from the viscous slope is then this many times what two orthogonal columns give,
+#: its standard error some seven times. On the TRAIN runs of the diagnosis benchmark's
+#: seeds 260 and 261 (537 cases): current mode 7.3 at most, speed loops following noise
+#: or a sine 5.5 at most, speed loops following a PRBS median 13, 90th percentile 45,
+#: largest 94 (seed 261 case 50, between ±70.6 rad/s, where the level and slope fitted
+#: with Coulomb friction came out 38 and −3.7 times the truth); the six HSM150 runs
+#: 6.8-17.4, EMPS 5.2.
+MAX_LEVEL_SLOPE_FACTOR = 50.0
+
+
+def level_slope_factor(omega: np.ndarray) -> float:
+    """How much worse a run of speeds ``omega`` (rad/s) tells a friction level
+    (``sign(ω)``: Coulomb or Stribeck friction) from the viscous slope (``ω``) than two
+    orthogonal columns would: their variance inflation factor, ``mean(ω²)/var(|ω|)``
+    over the moving samples (``1/(1 − R²)``, ``R²`` the squared cosine of the two
+    columns, ``mean(|ω|)²/mean(ω²)``). A run whose speed holds one magnitude, as a speed
+    loop's square wave between ``±r`` does, makes ``ω`` nearly ``r·sign(ω)``: the sum of
+    the two torques is then known and their split is not. ``inf`` where every moving
+    sample has one magnitude, 1 where fewer than two move."""
+    moving = np.abs(np.asarray(omega, dtype=float))
+    moving = moving[moving > 0]
+    if moving.size < 2:
+        return 1.0
+    spread = float(np.var(moving))
+    return float(np.mean(moving**2) / spread) if spread > 0 else float("inf")
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,9 @@
 :func:`effect_params` turns the coefficients of the effect columns into each effect's
 physical parameters. :func:`run_warnings` names what in a run limits the answer: a
 sampling period too long for the motion, a low fit, weak excitation, a shaft that never
-reverses; :func:`rest_warning`, a shaft that rests over much of the run. Warnings are
-plain sentences; the command line prints them on stderr.
+reverses or whose speed holds one magnitude; :func:`rest_warning`, a shaft that rests
+over much of the run. Warnings are plain sentences; the command line prints them on
+stderr.
 """
 
 from __future__ import annotations
@@ -91,6 +92,11 @@ def run_warnings(run: Run, est: Estimate, notes: list[str]) -> list[str]:
     if est.condition_number > HIGH_CONDITION:
         out.append(f"weak excitation: the model's columns are nearly dependent (condition "
                    f"number {est.condition_number:.3g}); vary speed and direction more")
+    if "one_speed" in notes:
+        out.append("the speed holds nearly one magnitude: a friction level (Coulomb or "
+                   "Stribeck friction) and the viscous slope D/J are nearly the same column "
+                   "here, so their split, D/J and the friction level are poorly determined; "
+                   "run the speed through several levels to tell them apart")
     if "never_reverses" in notes:
         out.append("the shaft never reverses: Coulomb friction and a current offset are the "
                    "same constant torque here and cannot be separated; reported as "

@@ -30,7 +30,11 @@ from scipy.stats import t as student_t
 
 from stand import effects as effect_registry
 from stand.diagnosis.model import ModelSpec
-from stand.effects.coulomb_friction import CoulombFriction
+from stand.effects.coulomb_friction import (
+    MAX_LEVEL_SLOPE_FACTOR,
+    CoulombFriction,
+    level_slope_factor,
+)
 from stand.effects.current_offset import CurrentOffset
 from stand.errors import InputError, NotExcitedError
 from stand.ident.columns import RAMP_COLUMN, TIMING_COLUMN, Design
@@ -386,6 +390,10 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
         notes.append("never_reverses")
         if wanted is not None and offset in wanted and coulomb not in pool:
             pool.append(coulomb)
+    frictions = {e for e in pool if e == coulomb or e in effect_registry.nested_in(coulomb)}
+    if frictions and level_slope_factor(design.sig.omega_f) > MAX_LEVEL_SLOPE_FACTOR:
+        # a run at one speed magnitude: a friction level and D/J are nearly one column
+        notes.append("one_speed")
     if input_weight is not None:  # a current rebuilt over the period: its timing is known
         weights: tuple[float, ...] = (input_weight,)
     else:

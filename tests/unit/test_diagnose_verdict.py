@@ -19,6 +19,7 @@ from stand.physics.parts import DriveParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run
+from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import DT_S, MOTOR, PLANTED, SENSORS, stand_runs
 
 #: A current command of 0.6 ± 0.3 A: the shaft of the test motor (Kt 0.05 N·m/A, 4 mN·m
@@ -120,3 +121,17 @@ def test_an_effect_not_needed_beside_the_others_is_dropped() -> None:
     assert chosen == ["coulomb_friction"], notes
     assert final.spec.coulomb and not final.spec.offset
     assert any(n.startswith("current_offset left out") for n in notes)
+
+
+def test_a_train_run_at_one_speed_magnitude_is_named_in_a_note() -> None:
+    """Benchmark seed 261 case 50: a speed loop's PRBS between ±70.6 rad/s, with Coulomb
+    friction and a delay. Its speed magnitude hardly changes on TRAIN, so the friction
+    level and D/J are nearly one column: fitted with Coulomb friction they came out 38 and
+    -3.7 times the truth, and the verdict names no friction. The note says why, and which
+    run would tell them apart; a current-mode PRBS gets no such note."""
+    _, train, holdout = case_runs(50, 261)
+    result = diagnose(train, holdout)
+    note = next(n for n in result.notes if n.startswith("the speed on TRAIN holds nearly one"))
+    assert "several speeds" in note and "coulomb_friction" in note, note
+    plain = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]}))
+    assert not any(n.startswith("the speed on TRAIN holds") for n in plain.notes)

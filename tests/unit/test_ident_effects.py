@@ -10,6 +10,7 @@ import pytest
 
 from stand.cli import main
 from stand.diagnosis.signals import prepare
+from stand.effects.coulomb_friction import MAX_LEVEL_SLOPE_FACTOR, level_slope_factor
 from stand.errors import InputError
 from stand.excitation import excitation
 from stand.ident.columns import Design
@@ -229,3 +230,25 @@ def test_a_stribeck_fit_counts_the_coulomb_model_it_nests_among_its_competitors(
                if "sign" in est.names and "stribeck" not in est.names]
     assert len(coulomb) == 1
     assert abs(coulomb[0].value("current") / KT_OVER_J - 1) < 0.005
+
+
+def test_a_speed_that_holds_one_magnitude_is_named_in_a_warning() -> None:
+    # a speed loop's square wave between ±60 rad/s: |ω| sits at 60 rad/s but for the
+    # reversals, and sign(ω) is nearly ω/60, so a friction level and D/J are one column
+    motor = MotorParams(R=MOTOR.R, L=MOTOR.L, Kt=MOTOR.Kt, J=MOTOR.J, D=MOTOR.D)
+    drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=10.0, speed_kp=0.05,
+                        speed_ki=1.0)
+    plant = MotorPlant(motor, drive, SensorParams(encoder_lines=1000, current_noise_A=0.005),
+                       Effects.from_mapping({"coulomb_friction": {"Tc": 0.004}}), seed=1)
+    dt = 1e-3
+    command = excitation("prbs", int(6.0 / dt), dt, 0.0, 60.0, int(0.5 / dt), seed=1)
+    run = simulate_motor(plant, "speed", command, dt)
+    # 153 here; 39 with a loop of 2/5 the gain and holds of 0.3 s, whose reversals
+    # take longer: the factor measures how much of the run the reversals are
+    assert level_slope_factor(prepare(run).omega_f) > MAX_LEVEL_SLOPE_FACTOR
+    held = identify_run(run)
+    assert any("holds nearly one magnitude" in w for w in held.warnings)
+    # the current-mode PRBS of the other tests runs through many speeds
+    spread = current_run({"coulomb_friction": {"Tc": 0.004}})
+    assert level_slope_factor(prepare(spread).omega_f) < MAX_LEVEL_SLOPE_FACTOR / 5
+    assert not any("holds nearly one magnitude" in w for w in identify_run(spread).warnings)
