@@ -390,8 +390,8 @@ def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,
         notes.append("never_reverses")
         if wanted is not None and offset in wanted and coulomb not in pool:
             pool.append(coulomb)
-    frictions = {e for e in pool if e == coulomb or e in effect_registry.nested_in(coulomb)}
-    if frictions and level_slope_factor(design.sig.omega_f) > MAX_LEVEL_SLOPE_FACTOR:
+    friction = any(e == coulomb or e in effect_registry.nested_in(coulomb) for e in pool)
+    if friction and level_slope_factor(design.sig.omega_f) > MAX_LEVEL_SLOPE_FACTOR:
         # a run at one speed magnitude: a friction level and D/J are nearly one column
         notes.append("one_speed")
     if input_weight is not None:  # a current rebuilt over the period: its timing is known
