@@ -222,6 +222,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
              if chosen else None)
     left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
                        along.test.p_value, named=bool(chosen),
+                       along_shrink=along.test.shrink,
                        p_speed=speed.p_value if speed else 1.0,
                        speed_shrink=speed.shrink if speed else 0.0)
     names = chosen + ([UNEXPLAINED] if left else [])
@@ -251,6 +252,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         noise_gap_percent=noise_gap,
         structure_p_value=structure.test.p_value,
         position_structure_p_value=along.test.p_value,
+        position_structure_shrink=along.test.shrink,
         speed_structure_p_value=speed.p_value if speed else None,
         speed_structure_shrink=speed.shrink if speed else None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)

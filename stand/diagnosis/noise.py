@@ -88,17 +88,20 @@ def beyond_approximation(nominal_gap: float, verdict_gap: float, noise_gap: floa
 
 def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
                 p_shapes: float = 1.0, p_along: float = 1.0, named: bool = False,
-                p_speed: float = 1.0, speed_shrink: float = 0.0) -> bool:
+                p_speed: float = 1.0, speed_shrink: float = 0.0,
+                along_shrink: float = 0.0) -> bool:
     """Whether the gap the verdict's effects leave (%, ``verdict_gap``; the nominal
     model's ``nominal_gap`` when none is ``named``) is ``unexplained``.
 
     ``p_shapes`` and ``p_along`` are the p-values of the two tests of what the effects
     leave (:func:`stand.diagnosis.structure.structure_test`: speed, current-level and
     time shapes; :func:`~stand.diagnosis.structure.along_travel_test`: a friction level or
-    torque varying along the travel). ``p_speed`` and ``speed_shrink`` are those of the
-    speed shapes alone beside a dry friction level, after named effects, on the samples
-    where the current changes least (``structure_test`` with ``SPEED_SHAPES``,
-    ``AFTER_NAMED_NUISANCE`` and ``steady_current``).
+    torque varying along the travel, ``along_shrink`` its shrink of HOLDOUT's equation
+    error, which counts, as a candidate effect's does, from ``MIN_SHRINK``). ``p_speed``
+    and ``speed_shrink`` are those of the speed shapes alone beside a dry friction level,
+    after named effects, on the samples where the current changes least
+    (``structure_test`` with ``SPEED_SHAPES``, ``AFTER_NAMED_NUISANCE`` and
+    ``steady_current``).
 
     * Nothing named and a gap within ``UNEXPLAINED_FACTOR`` times ``noise_gap``: only
       if either test passes at ``FAMILY_ALPHA`` shared between the two (Bonferroni):
@@ -121,6 +124,8 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
     """
     if beyond_approximation(nominal_gap, verdict_gap, noise_gap):
         return True
+    if along_shrink < MIN_SHRINK:
+        p_along = 1.0
     if named:
         beyond = verdict_gap > UNEXPLAINED_FACTOR * noise_gap
         speed = p_speed if beyond and speed_shrink >= MIN_SHRINK else 1.0

@@ -158,6 +158,9 @@ class Diagnosis(JsonResult):
     position_structure_p_value : float or None
         The same test with the position shapes alone (a dry friction whose level changes
         along the travel).
+    position_structure_shrink : float or None
+        Its shrink of HOLDOUT's equation error; below the diagnosis' least shrink that
+        counts (``MIN_SHRINK``) its structure does not count.
     speed_structure_p_value, speed_structure_shrink : float or None
         After named effects: the test with the speed shapes alone, beside a dry friction
         level (a torque that grows with the speed other than a level and a slope), on the
@@ -183,6 +186,7 @@ class Diagnosis(JsonResult):
     noise_gap_percent: float | None = None
     structure_p_value: float | None = None
     position_structure_p_value: float | None = None
+    position_structure_shrink: float | None = None
     speed_structure_p_value: float | None = None
     speed_structure_shrink: float | None = None
 

@@ -18,7 +18,7 @@ from stand.diagnosis import diagnose
 from stand.diagnosis.current_noise import CurrentNoise
 from stand.diagnosis.noise import UNEXPLAINED_FACTOR, unexplained
 from stand.diagnosis.signals import Signals, prepare
-from stand.diagnosis.significance import FAMILY_ALPHA
+from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
 from stand.diagnosis.simulate import segments
 from stand.diagnosis.structure import (
     SHAPES,
@@ -103,23 +103,28 @@ def test_unknown_shapes_are_refused(runs: tuple[Signals, Signals, np.ndarray]) -
 
 def test_the_rule_reads_the_shape_where_the_size_cannot_decide() -> None:
     noise = 0.2
+    along = {"along_shrink": MIN_SHRINK}
     # within the noise factor: the shape decides
     assert not unexplained(0.5, 0.5, noise)
     assert unexplained(0.5, 0.5, noise, p_shapes=0.004)
-    assert unexplained(0.5, 0.5, noise, p_along=0.004)
+    assert unexplained(0.5, 0.5, noise, p_along=0.004, **along)
     # the level is shared by the two tests
-    assert not unexplained(0.5, 0.5, noise, p_shapes=0.006, p_along=0.006)
+    assert not unexplained(0.5, 0.5, noise, p_shapes=0.006, p_along=0.006, **along)
     # a remainder taken as the named effect's approximation is not, when it varies along
     # the travel (at the level it shares with the speed shapes' test after named effects)
     assert not unexplained(10.0, 1.0, noise, named=True)
-    assert unexplained(10.0, 1.0, noise, p_along=0.004, named=True)
-    assert not unexplained(10.0, 1.0, noise, p_along=0.006, named=True)
+    assert unexplained(10.0, 1.0, noise, p_along=0.004, named=True, **along)
+    assert not unexplained(10.0, 1.0, noise, p_along=0.006, named=True, **along)
+    # ... and shrinks HOLDOUT's equation error as much as a candidate effect must
+    for named in (False, True):
+        assert not unexplained(10.0 if named else 0.5, 0.5, noise, p_along=1e-60, named=named,
+                               along_shrink=0.9 * MIN_SHRINK)
     # after a named effect the joint speed-current-time shapes do not count (the
     # vocabulary's own models leave them: sticking, a rigid contact), within the noise
     # or beyond it
     assert not unexplained(10.0, 1.0, noise, p_shapes=1e-9, named=True)
     assert not unexplained(10.0, 0.5, noise, p_shapes=1e-9, named=True)
-    assert unexplained(10.0, 0.5, noise, p_along=0.004, named=True)
+    assert unexplained(10.0, 0.5, noise, p_along=0.004, named=True, **along)
 
 
 def test_a_fan_drag_within_the_noise_gap_is_unexplained_not_none() -> None:

@@ -346,6 +346,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "unexplained": UNEXPLAINED in predicted, "noise_gap_percent": result.noise_gap_percent,
         "structure_p_value": result.structure_p_value,
         "position_structure_p_value": result.position_structure_p_value,
+        "position_structure_shrink": result.position_structure_shrink,
         "speed_structure_p_value": result.speed_structure_p_value,
         "speed_structure_shrink": result.speed_structure_shrink,
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
@@ -400,7 +401,9 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
     p_speed = 1.0 if row.get("speed_structure_p_value") is None else row["speed_structure_p_value"]
     left = unexplained(row["gap_percent"], row["verdict_gap_percent"], row["noise_gap_percent"],
                        p_shapes, p_along, named=bool(named), p_speed=p_speed,
-                       speed_shrink=row.get("speed_structure_shrink") or 0.0)
+                       speed_shrink=row.get("speed_structure_shrink") or 0.0,
+                       # rows written before the along test's shrink counted: any shrink
+                       along_shrink=row.get("position_structure_shrink", 1.0))
     words = named + ([UNEXPLAINED] if left else [])
     verdict = "+".join(words) if words else "none"
     shown = [p for p in verdict.split("+") if p != UNEXPLAINED] or [verdict]
