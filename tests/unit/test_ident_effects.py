@@ -235,10 +235,9 @@ def test_a_stribeck_fit_counts_the_coulomb_model_it_nests_among_its_competitors(
 def test_a_speed_that_holds_one_magnitude_is_named_in_a_warning() -> None:
     # a speed loop's square wave between ±60 rad/s: |ω| sits at 60 rad/s but for the
     # reversals, and sign(ω) is nearly ω/60, so a friction level and D/J are one column
-    motor = MotorParams(R=MOTOR.R, L=MOTOR.L, Kt=MOTOR.Kt, J=MOTOR.J, D=MOTOR.D)
     drive = DriveParams(mode="speed", supply_V=48.0, current_limit_A=10.0, speed_kp=0.05,
                         speed_ki=1.0)
-    plant = MotorPlant(motor, drive, SensorParams(encoder_lines=1000, current_noise_A=0.005),
+    plant = MotorPlant(MOTOR, drive, SensorParams(encoder_lines=1000, current_noise_A=0.005),
                        Effects.from_mapping({"coulomb_friction": {"Tc": 0.004}}), seed=1)
     dt = 1e-3
     command = excitation("prbs", int(6.0 / dt), dt, 0.0, 60.0, int(0.5 / dt), seed=1)
