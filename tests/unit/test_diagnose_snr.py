@@ -10,7 +10,8 @@ import pytest
 from stand.diagnosis.backlash_load import load_estimate
 from stand.diagnosis.candidates import agree
 from stand.diagnosis.model import FittedModel, ModelSpec
-from tests.bench.diagnose.benchmark import MIN_EFFECT_SNR, draw_case
+from tests.bench.diagnose import benchmark
+from tests.bench.diagnose.benchmark import EFFECT_DRAWS, MIN_EFFECT_SNR, case_snr, draw_case
 from tests.bench.diagnose.snr import effect_snr
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs
 
@@ -43,6 +44,18 @@ def test_weak_draws_are_drawn_again_until_they_show() -> None:
     assert case.draws > 1
     assert case.snr is not None and case.snr >= MIN_EFFECT_SNR
     assert case.effects != first.effects
+
+
+def test_a_case_drawn_on_another_stand_is_measured_against_that_stands_twin() -> None:
+    # case 108 of seed 260 (torque ripple): no draw shows on its first stand, so the
+    # case is drawn again on another one; its effect-free twin must be that stand's
+    # (it was the first stand's: every draw then measured 0, and the 40th was kept)
+    case = draw_case(108, 260)
+    assert case.draws > EFFECT_DRAWS
+    reported = case.snr
+    benchmark._TWINS.clear()
+    assert reported == pytest.approx(case_snr(case), rel=1e-9)
+    assert reported >= MIN_EFFECT_SNR
 
 
 def test_backlash_load_rebounds_with_the_restitution() -> None:
