@@ -12,7 +12,7 @@ from stand.diagnosis.candidates import agree
 from stand.diagnosis.model import FittedModel, ModelSpec
 from tests.bench.diagnose import benchmark
 from tests.bench.diagnose.benchmark import EFFECT_DRAWS, MIN_EFFECT_SNR, case_snr, draw_case
-from tests.bench.diagnose.snr import effect_snr
+from tests.bench.diagnose.snr import added_snr, effect_snr
 from tests.unit.test_diagnose_effects import MOTOR, stand_runs
 
 
@@ -33,6 +33,37 @@ def test_clear_effect_is_far_above_the_noise_and_a_tiny_one_below() -> None:
 def test_the_same_run_has_no_effect() -> None:
     run, _ = stand_runs({}, seed=3)
     assert effect_snr(run, run, MOTOR.J, MOTOR.J, MOTOR.D, MOTOR.Kt, 0.1) == 0.0
+
+
+def test_a_member_of_a_pair_counts_by_what_it_adds_to_the_other() -> None:
+    strong, tiny = ({"coulomb_friction": {"Tc": 0.004}},
+                    {"cogging": {"Tcog": 2e-6, "N": 12, "phi": 0.5}})
+    pair, _ = stand_runs({**strong, **tiny}, seed=3)
+    beside, _ = stand_runs(strong, seed=3)
+    bare, _ = stand_runs({}, seed=3)
+    J = MOTOR.J
+    # together the pair shows far above the noise, the cogging beside the friction not
+    assert effect_snr(pair, bare, J, J, MOTOR.D, MOTOR.Kt, 0.1) > 5.0
+    assert added_snr(pair, beside, bare, J, J, J, MOTOR.D, MOTOR.Kt, 0.1) < 0.5 * MIN_EFFECT_SNR
+    # what the friction adds beside the tiny cogging is the friction's own SNR, nearly
+    cogging, _ = stand_runs(tiny, seed=3)
+    alone = effect_snr(beside, bare, J, J, MOTOR.D, MOTOR.Kt, 0.1)
+    assert added_snr(pair, cogging, bare, J, J, J, MOTOR.D, MOTOR.Kt, 0.1) == pytest.approx(
+        alone, rel=0.1)
+
+
+def test_a_pair_is_drawn_again_until_each_member_shows_beside_the_other() -> None:
+    # case 3 of seed 260: together its first draw's Coulomb friction and torque ripple
+    # show far above the noise, the ripple beside the friction not
+    first = draw_case(3, 260, min_snr=0.0)
+    assert first.truth == ["coulomb_friction", "torque_ripple"]
+    holdout, bare = benchmark._simulate(first, 1, 10.0), benchmark._simulate(first, 1, 10.0, {})
+    assert effect_snr(holdout, bare, first.motor.J, first.motor.J, first.motor.D,
+                      first.motor.Kt, 0.1) > 5.0
+    assert case_snr(first) < 0.5 * MIN_EFFECT_SNR
+    case = draw_case(3, 260)
+    assert case.truth == first.truth and case.draws > 1
+    assert case.snr is not None and case.snr >= MIN_EFFECT_SNR
 
 
 def test_weak_draws_are_drawn_again_until_they_show() -> None:

@@ -39,7 +39,7 @@ from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, read_run, write_run
 from tests.bench.diagnose.oracle import ENGINE_TESTS, resolved_truth, visibility, visible_against_twin
 from tests.bench.diagnose.outside import HELD_OUT, OUTSIDE, draw_outside, outside_torque
-from tests.bench.diagnose.snr import effect_snr
+from tests.bench.diagnose.snr import added_snr, effect_snr
 
 #: Length of each of TRAIN and HOLDOUT, s.
 RUN_DURATION_S = 10.0
@@ -103,7 +103,8 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible).
 
     Which effects a case has is drawn once. Their parameters are drawn again (up to
-    ``EFFECT_DRAWS`` times) until their SNR on HOLDOUT is at least ``min_snr``; a stand
+    ``EFFECT_DRAWS`` times) until their SNR on HOLDOUT is at least ``min_snr`` (of a
+    pair, also what each adds beside the other, :func:`case_snr`); a stand
     and experiment on which they never reach it (backlash under a tight speed loop, a
     high-order ripple at speed) is drawn anew, up to ``STAND_DRAWS`` times, and the last
     draw is kept whatever its SNR. The first draw does not depend on ``min_snr``:
@@ -210,10 +211,28 @@ def _draw_stand(index: int, seed: int, rng: np.random.Generator) -> Case:
 
 
 def case_snr(case: Case, duration_s: float = RUN_DURATION_S) -> float:
-    """SNR of the case's effects on its HOLDOUT run (:func:`tests.bench.diagnose.snr.effect_snr`)."""
-    J_with = case.motor.J + case.effects.get("backlash", {}).get("J_load", 0.0)
-    return effect_snr(_simulate(case, 1, duration_s), _simulate(case, 1, duration_s, {}),
-                      case.motor.J, J_with, case.motor.D, case.motor.Kt, SNR_HORIZON_S)
+    """SNR of the case's effects on its HOLDOUT run (:func:`tests.bench.diagnose.snr.effect_snr`);
+    of a pair, the least of the pair's together and of what each adds beside the other
+    (:func:`tests.bench.diagnose.snr.added_snr`): a member that adds less than the
+    sensors' noise to the other is no more to be named than a single effect below it."""
+    holdout, bare = _simulate(case, 1, duration_s), _simulate(case, 1, duration_s, {})
+    snr = effect_snr(holdout, bare, case.motor.J, _rigid_J(case, case.effects),
+                     case.motor.D, case.motor.Kt, SNR_HORIZON_S)
+    if len(case.effects) < 2:
+        return snr
+    for name in case.effects:
+        others = {k: v for k, v in case.effects.items() if k != name}
+        beside = _simulate(case, 1, duration_s, others)
+        snr = min(snr, added_snr(holdout, beside, bare, _rigid_J(case, case.effects),
+                                 _rigid_J(case, others), case.motor.J, case.motor.D,
+                                 case.motor.Kt, SNR_HORIZON_S))
+    return snr
+
+
+def _rigid_J(case: Case, effects: dict[str, dict[str, float]]) -> float:
+    """The rigid inertia of ``case``'s stand with ``effects``: the motor's, plus a
+    backlash load's."""
+    return case.motor.J + effects.get("backlash", {}).get("J_load", 0.0)
 
 
 def _draw_effect(name: str, rng: np.random.Generator, stand: Case) -> dict[str, float]:

@@ -36,10 +36,19 @@ def nominal_gap(run: Run, J: float, D: float, Kt: float, horizon_s: float,
                 weight: float) -> float:
     """RMS error (rad/s) of the exact nominal model on ``run`` against its measured
     speed, re-anchored to the true speed (``run.meta['true_velocity_rad_s']``)."""
+    return float(np.sqrt(np.mean(nominal_error(run, J, D, Kt, horizon_s, weight) ** 2)))
+
+
+def nominal_error(run: Run, J: float, D: float, Kt: float, horizon_s: float,
+                  weight: float, against_true: bool = False) -> np.ndarray:
+    """The error (rad/s) whose RMS is :func:`nominal_gap`, sample by sample;
+    ``against_true``: against the true speed instead of the measured one (the error
+    free of quantization)."""
     dt = run.dt_s
     current = interval_current(np.asarray(run["current_A"], dtype=float), weight)
     true_speed = np.asarray(run.meta["true_velocity_rad_s"], dtype=float)
-    measured = np.gradient(np.asarray(run["position_rad"], dtype=float), dt)
+    measured = (true_speed if against_true
+                else np.gradient(np.asarray(run["position_rad"], dtype=float), dt))
     horizon = max(1, int(round(horizon_s / dt)))
     count = len(current) // horizon
     drive = current[: count * horizon].reshape(count, horizon)
@@ -50,8 +59,16 @@ def nominal_gap(run: Run, J: float, D: float, Kt: float, horizon_s: float,
     for k in range(horizon):  # exact discretization of J·ω' + D·ω = Kt·i, all segments at once
         simulated[:, k] = speed
         speed = decay * speed + gain * drive[:, k]
-    error = (simulated.ravel() - measured[: count * horizon])[1:-1]
-    return float(np.sqrt(np.mean(error**2)))
+    return (simulated.ravel() - measured[: count * horizon])[1:-1]
+
+
+def _noise_gap(without_effects: Run, J: float, D: float, Kt: float,
+               horizon_s: float) -> tuple[float, float]:
+    """The noise gap ``g0`` of the effect-free run and the input weight that gives it
+    (the best of :data:`WEIGHTS`)."""
+    noise_gaps = {w: nominal_gap(without_effects, J, D, Kt, horizon_s, w) for w in WEIGHTS}
+    weight = min(noise_gaps, key=noise_gaps.__getitem__)
+    return noise_gaps[weight], weight
 
 
 def effect_snr(with_effect: Run, without_effect: Run, J: float, J_with: float, D: float,
@@ -59,13 +76,34 @@ def effect_snr(with_effect: Run, without_effect: Run, J: float, J_with: float, D
     """SNR of the effect that makes ``with_effect`` differ from ``without_effect`` (the
     same command, sensors and seed). ``J_with`` is the rigid inertia of the stand with
     the effect (``J`` plus a backlash load), ``J`` the motor's."""
-    noise_gaps = {w: nominal_gap(without_effect, J, D, Kt, horizon_s, w) for w in WEIGHTS}
-    weight = min(noise_gaps, key=noise_gaps.__getitem__)
-    g0 = noise_gaps[weight]
+    g0, weight = _noise_gap(without_effect, J, D, Kt, horizon_s)
     g1 = nominal_gap(with_effect, J_with, D, Kt, horizon_s, weight)
     if g0 == 0.0:
         return math.inf if g1 > 0 else 0.0
     return math.sqrt(max(g1**2 - g0**2, 0.0)) / g0
 
 
-__all__ = ["effect_snr", "nominal_gap"]
+def added_snr(with_effect: Run, beside: Run, without_effects: Run, J_with: float,
+              J_beside: float, J: float, D: float, Kt: float, horizon_s: float) -> float:
+    """SNR of what an effect adds beside another: ``with_effect`` has both, ``beside``
+    the other alone, ``without_effects`` neither (the same command, sensors and seed);
+    ``J_with``, ``J_beside`` and ``J`` are the three stands' rigid inertias (the motor's
+    plus a backlash load's).
+
+    It is the RMS of the change the effect makes to the exact nominal model's error
+    against the true speed, ``e_with − e_beside``, over the noise gap ``g0``. Not
+    ``sqrt(g1² − g_beside²)``, as :func:`effect_snr` has it beside no effect: beside a
+    strong effect whose error the added one partly cancels, that difference of squares
+    reads 0 for an effect that clearly shows. Not against the measured speed either:
+    the slightest change of the motion draws the encoder's quantization anew, and
+    their difference would be noise of the size of ``g0``."""
+    g0, weight = _noise_gap(without_effects, J, D, Kt, horizon_s)
+    change = (nominal_error(with_effect, J_with, D, Kt, horizon_s, weight, True)
+              - nominal_error(beside, J_beside, D, Kt, horizon_s, weight, True))
+    rms = float(np.sqrt(np.mean(change**2)))
+    if g0 == 0.0:
+        return math.inf if rms > 0 else 0.0
+    return rms / g0
+
+
+__all__ = ["added_snr", "effect_snr", "nominal_error", "nominal_gap"]
