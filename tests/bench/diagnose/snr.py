@@ -15,7 +15,9 @@ the noise, relative to the noise::
 
 An effect with SNR < 1 changes the holdout speed less than the sensors' own noise does:
 no diagnosis can be expected to name it, and it does not make a sim-to-real gap that a
-user would see. Nothing here is used by the diagnosis; the engine never sees the truth.
+user would see. A member of a pair counts by what it adds beside the other
+(:func:`added_snr`). Nothing here is used by the diagnosis; the engine never sees the
+truth.
 """
 
 from __future__ import annotations
