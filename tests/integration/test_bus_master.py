@@ -25,6 +25,9 @@ SHORT = ExperimentProfile(name="short", procedure="efficiency", stand=STAND, dur
 #: The HTTP service's requirement: every drive in quick stop within 100 ms of stand time.
 QUICK_STOP_STAND_TIME_S = 0.1
 
+#: SDO answer time allowed where a test checks that the drives still answer at all, s.
+LIVENESS_SDO_TIMEOUT_S = 2.0
+
 
 def test_quick_stop_all_reaches_every_drive_within_100_ms_of_stand_time(
         can_config: BusConfig, tmp_path: Path) -> None:
@@ -155,5 +158,9 @@ def test_a_trace_that_cannot_be_written_stops_the_run_and_not_the_bus(
         assert 0 < samples.count < 2000
         for node in bus.sim.nodes:
             assert node.quick_stop_at is not None, node.id
-        statusword = bus.master.network[1].sdo.upload(0x6041, 0)  # the reader still hands on answers
+        # the reader still hands on answers: a liveness check, not a latency one (the
+        # master's single 0.3 s try once timed out in a loaded User-Mode Linux guest)
+        sdo = bus.master.network[1].sdo
+        sdo.RESPONSE_TIMEOUT = LIVENESS_SDO_TIMEOUT_S
+        statusword = sdo.upload(0x6041, 0)
     assert int.from_bytes(statusword, "little") & 0x6F == 0x07  # quick stop active
