@@ -216,16 +216,15 @@ def case_snr(case: Case, duration_s: float = RUN_DURATION_S) -> float:
     (:func:`tests.bench.diagnose.snr.added_snr`): a member that adds less than the
     sensors' noise to the other is no more to be named than a single effect below it."""
     holdout, bare = _simulate(case, 1, duration_s), _simulate(case, 1, duration_s, {})
-    snr = effect_snr(holdout, bare, case.motor.J, _rigid_J(case, case.effects),
-                     case.motor.D, case.motor.Kt, SNR_HORIZON_S)
+    motor, J_with = case.motor, _rigid_J(case, case.effects)
+    snr = effect_snr(holdout, bare, motor.J, J_with, motor.D, motor.Kt, SNR_HORIZON_S)
     if len(case.effects) < 2:
         return snr
     for name in case.effects:
         others = {k: v for k, v in case.effects.items() if k != name}
         beside = _simulate(case, 1, duration_s, others)
-        snr = min(snr, added_snr(holdout, beside, bare, _rigid_J(case, case.effects),
-                                 _rigid_J(case, others), case.motor.J, case.motor.D,
-                                 case.motor.Kt, SNR_HORIZON_S))
+        snr = min(snr, added_snr(holdout, beside, bare, J_with, _rigid_J(case, others),
+                                 motor.J, motor.D, motor.Kt, SNR_HORIZON_S))
     return snr
 
 
