@@ -7,20 +7,18 @@ below are re-exported from there for callers that read them here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from stand.diagnosis.model import FittedModel, ModelSpec
 from stand.diagnosis.signals import Signals
 from stand.effects import EFFECTS, get
 from stand.effects.backlash import MAX_GAP_RAD, MIN_GAP_COUNTS, MIN_GAP_RAD
-from stand.effects.base import AGREE_RATIO, NO_FIT
+from stand.effects.base import AGREE_RATIO, NO_FIT, Simulated
 from stand.effects.delay import DELAY_TOLERANCE_SAMPLES, MAX_DELAY_SAMPLES, delay_grid
 from stand.effects.periodic import MAX_ORDER, PHASE_TOLERANCE_RAD
 from stand.effects.stribeck_friction import STRIBECK_MIN_EXCESS, STRIBECK_WS_RATIO
 
 
 def search(effect: str, base: ModelSpec, train: Signals,
-           simulated: Callable[[ModelSpec], float] | None = None) -> ModelSpec:
+           simulated: Simulated | None = None) -> ModelSpec:
     """The model ``base`` plus ``effect``, its hyper-parameters picked on ``train``
     (:meth:`stand.effects.base.Effect.search`); ``simulated`` gives a spec's simulation
     error on ``train`` for the effects picked by simulation."""

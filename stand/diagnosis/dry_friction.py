@@ -43,7 +43,7 @@ from scipy.special import erf
 _HALF_SQRT_PI = 0.5 * math.sqrt(math.pi)
 
 
-def hump_integral(omega: np.ndarray, ws: float) -> np.ndarray:
+def hump_integral(omega: np.ndarray, ws: np.ndarray | float) -> np.ndarray:
     """``∫₀^ω exp(−(v/ωs)²) dv``, rad/s (odd in ``ω``)."""
     return np.asarray(ws * _HALF_SQRT_PI * erf(omega / ws))
 
@@ -66,7 +66,7 @@ def period_mean(speed: np.ndarray, ws: float | None = None) -> np.ndarray:
     return np.asarray(np.where(moved, rise / np.where(moved, span, 1.0), at_start))
 
 
-def hump_mean(start: np.ndarray, end: np.ndarray, ws: float) -> np.ndarray:
+def hump_mean(start: np.ndarray, end: np.ndarray, ws: np.ndarray | float) -> np.ndarray:
     """Mean of ``exp(−(ω/ωs)²)`` while ``ω`` moves linearly from ``start`` to ``end``
     (rad/s; both on one side of zero), the value at ``start`` where they meet."""
     span = end - start
@@ -78,7 +78,8 @@ def hump_mean(start: np.ndarray, end: np.ndarray, ws: float) -> np.ndarray:
 
 
 def friction_step(omega: np.ndarray, free: np.ndarray, gain: np.ndarray | float,
-                  coulomb: float, excess: float, ws: float) -> tuple[np.ndarray, np.ndarray]:
+                  coulomb: np.ndarray | float, excess: np.ndarray | float,
+                  ws: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
     """Speed at the end of a step and mean speed over it, rad/s.
 
     Parameters
@@ -89,14 +90,16 @@ def friction_step(omega: np.ndarray, free: np.ndarray, gain: np.ndarray | float,
         Speed the other torques alone would reach by the end of the step, rad/s.
     gain : ndarray or float
         Speed change per unit torque (per inertia) over the step, s (> 0).
-    coulomb, excess : float
+    coulomb, excess : ndarray or float
         Coulomb level ``Tc`` and static excess ``Ts − Tc`` per inertia, rad/s², with a
         static level ``Tc + (Ts − Tc)`` above zero.
-    ws : float
+    ws : ndarray or float
         Stribeck velocity, rad/s (unused when ``excess`` is 0).
+
+    Each of ``gain``, ``coulomb``, ``excess`` and ``ws`` is one value or one per speed.
     """
     side = np.sign(omega)
-    if excess:  # the end predicted with the start's level, the level averaged to it
+    if np.any(excess):  # the end predicted with the start's level, the level averaged to it
         slid = free - gain * side * (coulomb + excess * np.exp(-((omega / ws) ** 2)))
         ahead = np.where(side * slid > 0, slid, 0.0)
         slid = free - gain * side * (coulomb + excess * hump_mean(omega, ahead, ws))
@@ -107,10 +110,12 @@ def friction_step(omega: np.ndarray, free: np.ndarray, gain: np.ndarray | float,
     if not through.any():
         return slid, mean
     at = np.flatnonzero(through)
-    start, sign, g = omega[at], side[at], gain if np.ndim(gain) == 0 else np.asarray(gain)[at]
+    start, sign = omega[at], side[at]
+    g, coulomb, excess, ws = (value if np.ndim(value) == 0 else np.asarray(value)[at]
+                              for value in (gain, coulomb, excess, ws))
     drive = free[at] - start  # the other torques' speed change over the step
     zero = np.zeros_like(start)
-    to_zero = coulomb + excess * hump_mean(start, zero, ws) if excess else coulomb
+    to_zero = coulomb + excess * hump_mean(start, zero, ws) if np.any(excess) else coulomb
     # the share of the step before zero speed (speed linear in time; 0 at rest)
     before = np.abs(start) / (g * to_zero - sign * drive)
     rest = 1.0 - before
@@ -119,7 +124,7 @@ def friction_step(omega: np.ndarray, free: np.ndarray, gain: np.ndarray | float,
     static = coulomb + excess
     away = np.sign(push)
     off = rest * g * (push - away * static)
-    if excess:
+    if np.any(excess):
         off = rest * g * (push - away * (coulomb + excess * hump_mean(zero, off, ws)))
     off = np.where(np.abs(push) > static, off, 0.0)
     slid[at] = off

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import cache, cached_property
+from functools import cached_property
 
 import numpy as np
 
@@ -25,8 +25,8 @@ from stand.diagnosis.model import (
 from stand.diagnosis.notes import single_tone_hz
 from stand.diagnosis.signals import Signals
 from stand.diagnosis.significance import MIN_SHRINK
-from stand.diagnosis.simulate import Segments, segments, simulate
-from stand.effects.base import NO_FIT, Effect
+from stand.diagnosis.simulate import Segments, segments, simulate_many
+from stand.effects.base import NO_FIT, Effect, Simulated
 from stand.errors import InputError, NotExcitedError
 
 #: Fewest segments for the paired test (the horizon shrinks on short runs).
@@ -78,10 +78,22 @@ class Bench:
         """``spec`` identified on TRAIN, simulated on HOLDOUT."""
         return self.score_model(fit(spec, self.train))
 
+    def score_many(self, specs: list[ModelSpec]) -> list[Scored]:
+        """:meth:`score` of each of ``specs``, simulated together."""
+        return self.score_models([fit(spec, self.train) for spec in specs])
+
     def score_model(self, model: FittedModel) -> Scored:
         """``model`` simulated on HOLDOUT: its error, gap and per-segment squared errors."""
+        return self.score_models([model])[0]
+
+    def score_models(self, models: list[FittedModel]) -> list[Scored]:
+        """:meth:`score_model` of each of ``models``, simulated together."""
+        speeds = simulate_many(models, self.holdout, self.seg)
+        return [self._scored(model, speed) for model, speed in zip(models, speeds, strict=True)]
+
+    def _scored(self, model: FittedModel, speed: np.ndarray) -> Scored:
         spec = model.spec
-        error = simulate(model, self.holdout, self.seg) - self.measured
+        error = speed - self.measured
         error = np.where(np.isfinite(error), error, 1e6 * self.scale)
         error = np.clip(error, -1e6 * self.scale, 1e6 * self.scale)
         gap = 100.0 * float(np.sqrt(np.mean(error**2))) / self.scale
@@ -183,14 +195,13 @@ class Bench:
         return True
 
     def simulated(self, effect: type[Effect], sig: Signals
-                  ) -> Callable[[ModelSpec], float] | None:
+                  ) -> Simulated | None:
         """For an effect whose search picks by simulation, a spec's gap when identified
         on ``sig`` and simulated on ``sig`` itself (TRAIN or HOLDOUT: each run's search
         stays within that run); else None."""
         if not effect.picked_by_simulation:
             return None
-        on_itself = self.on_train if sig is self.train else self.reverse.on_train
-        return cache(lambda spec: on_itself.score(spec).gap)
+        return _Gaps(self.on_train if sig is self.train else self.reverse.on_train)
 
     @cached_property
     def on_train(self) -> Bench:
@@ -224,3 +235,21 @@ class Bench:
                       and effect.same(grid[ahead], grid[back])
                       and backward[back] <= (1.0 - MIN_SHRINK) * reverse.score(base.spec).gap)
         return replace(forward[ahead], consistent=consistent, looks=len(grid))
+
+
+class _Gaps:
+    """Specs' gaps on ``bench`` (:class:`~stand.effects.base.Simulated`), each spec
+    scored once."""
+
+    def __init__(self, bench: Bench) -> None:
+        self.bench = bench
+        self.known: dict[ModelSpec, float] = {}
+
+    def __call__(self, spec: ModelSpec) -> float:
+        return self.many([spec])[0]
+
+    def many(self, specs: list[ModelSpec]) -> list[float]:
+        new = [spec for spec in dict.fromkeys(specs) if spec not in self.known]
+        for spec, scored in zip(new, self.bench.score_many(new), strict=True):
+            self.known[spec] = scored.gap
+        return [self.known[spec] for spec in specs]

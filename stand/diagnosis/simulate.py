@@ -49,6 +49,9 @@ MAX_SUBSTEPS = 20
 #: 0.69 % at 2, 0.59 % at 3, 0.55 % at 5, 0.53 % at 10 and at 20 (nominal model 1.45 %);
 #: each sub-step costs about 0.06 s of the 20 s timing case's diagnosis.
 BACKLASH_SUBSTEPS = 4
+#: Most rows (models times segments) stepped together: well past where numpy's per-call
+#: overhead is paid off, with working arrays of a few hundred kB.
+BATCH_ROWS = 16384
 #: Least friction smoothing speed, as a fraction of the run's 95th-percentile speed.
 FRICTION_SMOOTHING_FRACTION = 1e-3
 
@@ -91,25 +94,56 @@ def simulate(model: FittedModel, sig: Signals, seg: Segments) -> np.ndarray:
         Simulated speed at the samples ``seg.index`` as the measurement reports it (the
         central difference of the simulated position), rad/s.
     """
-    spec = model.spec
+    return simulate_many([model], sig, seg)[0]
+
+
+def simulate_many(models: list[FittedModel], sig: Signals, seg: Segments) -> list[np.ndarray]:
+    """:func:`simulate` of each of ``models``, those of one kind (:func:`_kind`: the same
+    terms and sub-steps) stepped together, each model's segments a block of rows.
+
+    A search that picks by simulation (a backlash gap's grid) simulates dozens of models
+    that differ only in their values; one at a time, each sub-step's few hundred rows
+    cost what numpy's per-call overhead costs, not what the arithmetic does."""
+    out: list[np.ndarray] = [np.empty(0)] * len(models)
+    kinds: dict[Kind, list[int]] = {}
+    for k, model in enumerate(models):
+        kinds.setdefault(_kind(model, sig), []).append(k)
+    size = max(1, BATCH_ROWS // len(seg.starts))
+    for members in kinds.values():
+        for first in range(0, len(members), size):
+            chunk = members[first:first + size]
+            speeds = _simulate_together([models[k] for k in chunk], sig, seg)
+            for k, speed in zip(chunk, speeds, strict=True):
+                out[k] = speed
+    return out
+
+
+def _simulate_together(models: list[FittedModel], sig: Signals,
+                       seg: Segments) -> list[np.ndarray]:
+    """:func:`simulate` of ``models`` of one kind in one pass."""
+    spec = models[0].spec
     dt = sig.dt_s
-    current = period_current(model, sig)
     first = seg.starts - 1
     periods = first[:, None] + np.arange(seg.horizon + 1)[None, :]
-    drive = current[periods]
+    drive = np.concatenate([period_current(model, sig)[periods] for model in models])
     # the angle's share of a current that is not held over its period (its ramp-weighted
     # mean above its mean, a kick's early current): (Δt²/2)·(Kt/J)·shape
-    shape = period_shape(model, sig)
-    bend = None if shape is None else 0.5 * dt * dt * model.coef["current"] * shape[periods]
-    step = _Stepper(model, sig)
-    anchor = _State(sig.theta_f[first].copy(), sig.omega_meas[first].copy())
+    shapes = [period_shape(model, sig) for model in models]
+    bend = None if shapes[0] is None else np.concatenate([
+        0.5 * dt * dt * model.coef["current"] * shape[periods]
+        for model, shape in zip(models, shapes, strict=True) if shape is not None])
+    step = _Stepper(models, sig, len(first))
+    count = len(models)
+    anchor = _State(np.tile(sig.theta_f[first], count), np.tile(sig.omega_meas[first], count))
     if spec.backlash_gap is not None:
-        tl, wl = load_state(sig, spec.backlash_gap, spec.backlash_restitution)
-        anchor.theta_l, anchor.omega_l = tl[first].copy(), wl[first].copy()
-    _shoot(step, anchor, drive[:, :2], sig.theta[seg.starts + 1] - sig.theta[first],
+        loads = [load_state(sig, model.spec.backlash_gap or 0.0,
+                            model.spec.backlash_restitution) for model in models]
+        anchor.theta_l = np.concatenate([tl[first] for tl, _ in loads])
+        anchor.omega_l = np.concatenate([wl[first] for _, wl in loads])
+    _shoot(step, anchor, drive[:, :2], np.tile(sig.theta[seg.starts + 1] - sig.theta[first], count),
            None if bend is None else bend[:, :2])
     theta = _positions(step, anchor, drive, bend)
-    return (theta[:, 2:] - theta[:, :-2]) / (2.0 * dt)
+    return np.split((theta[:, 2:] - theta[:, :-2]) / (2.0 * dt), count)
 
 
 def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray,
@@ -119,7 +153,7 @@ def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray
     barely responds to its start speed (a shaft held by friction), the slope of the
     linear model is used instead."""
     span = drive.shape[1] * step.sig.dt_s
-    linear = span * _phi1(step.model.c_omega * span)
+    linear = step.rows([span * _phi1(c_omega * span) for c_omega in step.c_omegas])
     delta = max(1e-6, 1e-3 * step.sig.top_speed)
     for _ in range(SHOOTING_STEPS):
         reach = _positions(step, anchor, drive, bend)[:, -1] - anchor.theta
@@ -146,30 +180,59 @@ def _positions(step: _Stepper, anchor: _State, drive: np.ndarray,
     return theta
 
 
-class _Stepper:
-    """One sample period of ``model`` for all segments at once (its sub-steps)."""
+#: What models stepped together share (:func:`_kind`).
+Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool]
 
-    def __init__(self, model: FittedModel, sig: Signals) -> None:
-        spec, c = model.spec, model.coef
-        self.model, self.sig = model, sig
-        self.gap = spec.backlash_gap
-        self.ratio = max(-c.get("load_accel", 0.0), 0.0)
-        self.fc = -c.get("sign", 0.0)
-        self.fs = -c.get("stribeck", 0.0)
-        self.ws = spec.stribeck_ws or 1.0
+
+def _kind(model: FittedModel, sig: Signals) -> Kind:
+    """What models stepped together must share: their sub-steps and the terms and
+    branches of :meth:`_Stepper._substep` they take."""
+    spec, c = model.spec, model.coef
+    top = float(np.max(np.abs(sig.omega_f)))
+    rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
+               (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
+    # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
+    gap = spec.backlash_gap
+    contact = min(BACKLASH_SUBSTEPS, math.ceil(top * sig.dt_s / gap)) if gap else 1
+    n_sub = int(min(MAX_SUBSTEPS, max(1, contact, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
+    friction, stribeck = "sign" in c, "stribeck" in c
+    fc, fs = -c.get("sign", 0.0), -c.get("stribeck", 0.0)
+    # a physical friction (a level >= 0 at every speed, a static level > 0) is stepped
+    # as dry friction; a constant level below zero drives the shaft (not friction)
+    dry = friction and fc >= 0 and fc + (fs if stribeck else 0.0) > 0
+    pushing = friction and not stribeck and fc < 0
+    return (n_sub, spec.offset, spec.cogging_N, spec.ripple_N, gap is not None, friction,
+            stribeck, dry, pushing)
+
+
+class _Stepper:
+    """One sample period of ``models`` (of one :func:`_kind`) for all segments at once
+    (its sub-steps): each model's ``segments`` a block of rows, each model's values a
+    number (one model) or a column over the rows."""
+
+    def __init__(self, models: list[FittedModel], sig: Signals, segments: int) -> None:
+        self.sig, self.spec, self.segments = sig, models[0].spec, segments
+        (self.n_sub, _, _, _, backlash, self.friction, self.stribeck, self.dry,
+         self.pushing) = _kind(models[0], sig)
+        coef = [model.coef for model in models]
+
+        def of(name: str) -> np.ndarray | float:
+            return self.rows([c.get(name, 0.0) for c in coef])
+
+        self.current, self.one = of("current"), of("one")
+        self.cog_sin, self.cog_cos = of("cog_sin"), of("cog_cos")
+        self.rip_sin, self.rip_cos = of("rip_sin"), of("rip_cos")
+        self.c_omegas = [model.c_omega for model in models]
+        self.c_theta = self.rows([model.c_theta for model in models])
+        self.c_omega = self.rows(self.c_omegas)
+        self.gap = self.rows([model.spec.backlash_gap or 0.0 for model in models]) if backlash else None
+        self.restitution = self.rows([model.spec.backlash_restitution for model in models])
+        ratios = [max(-c.get("load_accel", 0.0), 0.0) for c in coef]
+        self.ratio = self.rows(ratios)
+        self.fc = self.rows([-c.get("sign", 0.0) for c in coef])
+        self.fs = self.rows([-c.get("stribeck", 0.0) for c in coef])
+        self.ws = self.rows([model.spec.stribeck_ws or 1.0 for model in models])
         self.smooth = friction_smoothing(sig)
-        self.friction = "sign" in c
-        self.stribeck = "stribeck" in c
-        # a physical friction (a level >= 0 at every speed, a static level > 0) is
-        # stepped as dry friction
-        static = self.fc + (self.fs if self.stribeck else 0.0)
-        self.dry = self.friction and self.fc >= 0 and static > 0
-        top = float(np.max(np.abs(sig.omega_f)))
-        rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
-                   (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
-        # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
-        contact = min(BACKLASH_SUBSTEPS, math.ceil(top * sig.dt_s / self.gap)) if self.gap else 1
-        self.n_sub = int(min(MAX_SUBSTEPS, max(1, contact, math.ceil(rate * sig.dt_s / MAX_RATE_STEP))))
         self.h = sig.dt_s / self.n_sub
         # The speed's own rate c_ω stepped exactly: over a sub-step the speed relaxes at
         # that rate towards what the other terms (held over the sub-step) drive it to.
@@ -177,8 +240,15 @@ class _Stepper:
         # (e^(c_ω·h) − 1)/c_ω: ~c_ω·h/2 too much, a few % at c_ω·h of 0.05-0.1, a
         # structural error of the simulation that effect candidates would absorb. While
         # a backlash load is carried the rate is c_ω/(1 + J_l/J).
-        self.h_free = self.h * _phi1(model.c_omega * self.h)
-        self.h_carried = self.h * _phi1(model.c_omega * self.h / (1.0 + self.ratio))
+        self.h_free = self.rows([self.h * _phi1(m.c_omega * self.h) for m in models])
+        self.h_carried = self.rows([self.h * _phi1(m.c_omega * self.h / (1.0 + r))
+                                    for m, r in zip(models, ratios, strict=True)])
+
+    def rows(self, values: list[float]) -> np.ndarray | float:
+        """One value per model as the rows take it: the number itself for one model."""
+        if len(values) == 1:
+            return float(values[0])
+        return np.repeat(np.asarray(values, dtype=float), self.segments)
 
     def sample(self, st: _State, i: np.ndarray) -> None:
         """Advance ``st`` by one sample period under the current ``i``."""
@@ -186,18 +256,18 @@ class _Stepper:
             self._substep(st, i)
 
     def _substep(self, st: _State, i: np.ndarray) -> None:
-        spec, c, h, gap, ratio = self.model.spec, self.model.coef, self.h, self.gap, self.ratio
+        spec, h, gap, ratio = self.spec, self.h, self.gap, self.ratio
         theta, omega = st.theta, st.omega
-        a = self.model.c_theta * theta + self.model.c_omega * omega + c["current"] * i
+        a = self.c_theta * theta + self.c_omega * omega + self.current * i
         if spec.offset:
-            a = a + c["one"]
+            a = a + self.one
         step = omega * h  # position-periodic torques: their mean over the sub-step
         if spec.cogging_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.cogging_N, theta, step)
-            a = a + c["cog_sin"] * mean_sin + c["cog_cos"] * mean_cos
+            a = a + self.cog_sin * mean_sin + self.cog_cos * mean_cos
         if spec.ripple_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
-            a = a + i * (c["rip_sin"] * mean_sin + c["rip_cos"] * mean_cos)
+            a = a + i * (self.rip_sin * mean_sin + self.rip_cos * mean_cos)
         # without a Stribeck term the friction level is the constant Coulomb level
         level: np.ndarray | float = (
             self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.stribeck
@@ -224,13 +294,13 @@ class _Stepper:
                 # stepped implicitly, stable for any smoothing
                 smooth = self.smooth
                 free = omega + h_eff * scale * a
-                if isinstance(level, float) and level < 0:
+                if self.pushing:
                     new = free - h_eff * scale * level * np.tanh(omega / smooth)
                 else:
                     stop = h_eff * scale * np.maximum(level, 0.0)
                     new = np.where(np.abs(free) > stop, free - stop * np.sign(free),
                                    free / (1.0 + stop / smooth))
-                    if not isinstance(level, float):
+                    if self.stribeck:
                         new = np.where(level < 0,
                                        free - h_eff * scale * level * np.tanh(omega / smooth),
                                        new)
@@ -245,7 +315,7 @@ class _Stepper:
             st.omega_l = np.where(carried, st.omega, st.omega_l)
             twist = st.theta - st.theta_l
             hit = np.abs(twist) > gap
-            e = spec.backlash_restitution  # impact of two bodies: momentum kept, relative
+            e = self.restitution  # impact of two bodies: momentum kept, relative
             v = (st.omega + ratio * st.omega_l) / (1.0 + ratio)  # speed reversed times e
             rel = st.omega - st.omega_l
             st.omega = np.where(hit, v - e * ratio * rel / (1.0 + ratio), st.omega)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -35,8 +35,18 @@ AGREE_RATIO = 3.0
 #: The experiment that separates a constant torque from friction (``separated_by``).
 REVERSING_COMMAND = "a command that crosses zero, so that the shaft turns both ways"
 
-#: A spec's simulation error on the run it was searched on (:meth:`Effect.search`).
-Simulated = Callable[[ModelSpec], float]
+
+
+class Simulated(Protocol):
+    """A spec's simulation error on the run it was searched on (:meth:`Effect.search`):
+    of one spec, or of several (simulated together, which a search of many values
+    should use)."""
+
+    def __call__(self, spec: ModelSpec) -> float: ...
+
+    def many(self, specs: list[ModelSpec]) -> list[float]: ...
+
+
 #: Fitted parameters of an effect, by name (units in each effect's ``units``).
 Params = dict[str, float | int | None]
 
@@ -207,8 +217,9 @@ def best(specs: list[ModelSpec], train: Signals, negative: tuple[str, ...] = (),
     if not np.isfinite(rms).any():
         return NO_FIT
     if simulated is not None:
-        rms = np.array([simulated(spec) if np.isfinite(r) else np.inf
-                        for spec, r in zip(specs, rms, strict=True)])
+        finite = np.flatnonzero(np.isfinite(rms))
+        rms = np.full(len(specs), np.inf)
+        rms[finite] = simulated.many([specs[k] for k in finite])
     return specs[int(np.argmin(rms))]
 
 

@@ -98,10 +98,11 @@ def search_order(base: ModelSpec, train: Signals, of_order: Callable[[int], Mode
     before = float(fit_residual_batch([base], train)[0][0])
     if not (before > 0 and 1.0 - rms[ranked[0]] / before >= MIN_SHRINK):
         return first
-    picked = min((specs[k] for k in ranked), key=simulated)   # ranked: finite fits only
+    gaps = simulated.many([specs[k] for k in ranked])   # ranked: finite fits only
+    picked = int(np.argmin(gaps))
     # a near tie keeps the equation error's order (a flip there broke the agreement
     # of TRAIN's and HOLDOUT's searches for a ripple both had right)
-    return picked if simulated(picked) < (1 - SIMULATION_MARGIN) * simulated(first) else first
+    return specs[ranked[picked]] if gaps[picked] < (1 - SIMULATION_MARGIN) * gaps[0] else first
 
 
 def ident_orders(of_order: Callable[[int], ModelSpec],

@@ -18,7 +18,7 @@ from stand.diagnosis.candidates import MAX_DELAY_SAMPLES, MAX_GAP_RAD, NO_FIT, a
 from stand.diagnosis.model import FittedModel, ModelSpec, fit, fit_residual_batch, periodic_mean
 from stand.diagnosis.signals import prepare, quantization_step
 from stand.diagnosis.significance import paired_improvement
-from stand.diagnosis.simulate import segments, simulate
+from stand.diagnosis.simulate import BATCH_ROWS, segments, simulate, simulate_many
 from stand.effects import backlash
 from stand.physics.parts import MotorParams, SensorParams
 from stand.runfile import Run, check_columns, read_run, write_run
@@ -219,6 +219,42 @@ def test_the_simulation_steps_the_speed_rate_exactly() -> None:
     seg = segments(n, h, 0.1, 12)
     error = simulate(model, sig, seg) - sig.omega_meas[seg.index]
     assert np.sqrt(np.mean(error**2)) < 1e-3 * np.std(sig.omega_meas)
+
+
+@pytest.mark.parametrize("effect", ["backlash", "stribeck_friction", "cogging"])
+def test_models_stepped_together_simulate_as_each_alone(effect: str) -> None:
+    """A search that picks by simulation steps its grid's models together, each model's
+    segments a block of rows with its own values: each speed is the one it simulates
+    alone, to rounding."""
+    sig = prepare(stand_runs({effect: PLANTED[effect]})[0])
+    seg = segments(len(sig), sig.dt_s, 0.1, 12)
+    base = ModelSpec(input_weight=0.5)
+    grid = {"backlash": [base.merged(ModelSpec(backlash_gap=float(g), backlash_restitution=e))
+                         for g in (0.01, 0.02, 0.04, 0.3) for e in (0.0, 0.5)],
+            "stribeck_friction": [base.merged(ModelSpec(stribeck_ws=w)) for w in (1.0, 5.0, 20.0)],
+            "cogging": [base.merged(ModelSpec(cogging_N=n)) for n in (6, 12, 24)]}[effect]
+    models = [fit(spec, sig) for spec in [base, *grid]]
+    alone = [simulate(model, sig, seg) for model in models]
+    together = simulate_many(models, sig, seg)
+    for one, both in zip(alone, together, strict=True):
+        np.testing.assert_allclose(both, one, rtol=1e-9, atol=1e-9 * np.max(np.abs(one)))
+    assert max(np.max(np.abs(a - alone[0])) for a in alone[1:]) > 1e-3  # the values matter
+
+
+def test_models_stepped_together_are_split_into_batches(monkeypatch: pytest.MonkeyPatch) -> None:
+    """More models than :data:`BATCH_ROWS` rows hold are stepped in several batches,
+    each model's speed still its own."""
+    import stand.diagnosis.simulate as simulation
+
+    sig = prepare(stand_runs({"backlash": PLANTED["backlash"]})[0])
+    seg = segments(len(sig), sig.dt_s, 0.1, 12)
+    models = [fit(ModelSpec(input_weight=0.5, backlash_gap=float(g)), sig)
+              for g in (0.01, 0.015, 0.02, 0.03, 0.04)]
+    whole = simulate_many(models, sig, seg)
+    monkeypatch.setattr(simulation, "BATCH_ROWS", 2 * len(seg.starts))
+    assert 2 * len(seg.starts) < BATCH_ROWS
+    for one, split in zip(whole, simulate_many(models, sig, seg), strict=True):
+        np.testing.assert_allclose(split, one, rtol=1e-9, atol=1e-9 * np.max(np.abs(one)))
 
 
 def test_a_dead_zone_of_a_few_counts_is_no_backlash(monkeypatch: pytest.MonkeyPatch) -> None:
