@@ -12,6 +12,9 @@ makes. On effect-free current-mode sines (benchmark seed 252, current read to 1/
 1/190 of its RMS) the shapes took 7 % and 0.9 % of the equation error at p 0.003 and
 7e-10, and the verdict was ``unexplained``. Correcting the shapes' gains alone made it
 worse (p 3e-15): it is the current's own gain that must be restored.
+(Both are ``unexplained`` again since the corrected fit starts from the model, issue-21-prior:
+what had passed them was that fit dropping part of the model's current term, see
+:mod:`stand.diagnosis.structure`.)
 
 This module gives, for one run and one model, the second moments of that noise per
 unit of its variance, as two carriers hold it: the low-passed noise ``n_f`` (what a
