@@ -106,21 +106,22 @@ def simulate_many(models: list[FittedModel], sig: Signals, seg: Segments) -> lis
     cost what numpy's per-call overhead costs, not what the arithmetic does."""
     out: list[np.ndarray] = [np.empty(0)] * len(models)
     kinds: dict[Kind, list[int]] = {}
+    top = float(np.max(np.abs(sig.omega_f)))
     for k, model in enumerate(models):
-        kinds.setdefault(_kind(model, sig), []).append(k)
+        kinds.setdefault(_kind(model, sig, top), []).append(k)
     size = max(1, BATCH_ROWS // len(seg.starts))
-    for members in kinds.values():
+    for kind, members in kinds.items():
         for first in range(0, len(members), size):
             chunk = members[first:first + size]
-            speeds = _simulate_together([models[k] for k in chunk], sig, seg)
+            speeds = _simulate_together([models[k] for k in chunk], sig, seg, kind)
             for k, speed in zip(chunk, speeds, strict=True):
                 out[k] = speed
     return out
 
 
-def _simulate_together(models: list[FittedModel], sig: Signals,
-                       seg: Segments) -> list[np.ndarray]:
-    """:func:`simulate` of ``models`` of one kind in one pass."""
+def _simulate_together(models: list[FittedModel], sig: Signals, seg: Segments,
+                       kind: Kind) -> list[np.ndarray]:
+    """:func:`simulate` of ``models``, all of ``kind``, in one pass."""
     spec = models[0].spec
     dt = sig.dt_s
     first = seg.starts - 1
@@ -132,7 +133,7 @@ def _simulate_together(models: list[FittedModel], sig: Signals,
     bend = None if shapes[0] is None else np.concatenate([
         0.5 * dt * dt * model.coef["current"] * shape[periods]
         for model, shape in zip(models, shapes, strict=True) if shape is not None])
-    step = _Stepper(models, sig, len(first))
+    step = _Stepper(models, sig, len(first), kind)
     count = len(models)
     anchor = _State(np.tile(sig.theta_f[first], count), np.tile(sig.omega_meas[first], count))
     if spec.backlash_gap is not None:
@@ -184,11 +185,11 @@ def _positions(step: _Stepper, anchor: _State, drive: np.ndarray,
 Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool]
 
 
-def _kind(model: FittedModel, sig: Signals) -> Kind:
+def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
     """What models stepped together must share: their sub-steps and the terms and
-    branches of :meth:`_Stepper._substep` they take."""
+    branches of :meth:`_Stepper._substep` they take (``top``: the run's largest
+    filtered speed, rad/s)."""
     spec, c = model.spec, model.coef
-    top = float(np.max(np.abs(sig.omega_f)))
     rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
                (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
     # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
@@ -206,14 +207,15 @@ def _kind(model: FittedModel, sig: Signals) -> Kind:
 
 
 class _Stepper:
-    """One sample period of ``models`` (of one :func:`_kind`) for all segments at once
-    (its sub-steps): each model's ``segments`` a block of rows, each model's values a
-    number (one model) or a column over the rows."""
+    """One sample period of ``models`` (all of ``kind``, :func:`_kind`) for all segments
+    at once (its sub-steps): each model's ``segments`` a block of rows, each model's
+    values a number (one model) or a column over the rows."""
 
-    def __init__(self, models: list[FittedModel], sig: Signals, segments: int) -> None:
+    def __init__(self, models: list[FittedModel], sig: Signals, segments: int,
+                 kind: Kind) -> None:
         self.sig, self.spec, self.segments = sig, models[0].spec, segments
         (self.n_sub, _, _, _, backlash, self.friction, self.stribeck, self.dry,
-         self.pushing) = _kind(models[0], sig)
+         self.pushing) = kind
         coef = [model.coef for model in models]
 
         def of(name: str) -> np.ndarray | float:

@@ -186,9 +186,10 @@ def _predictor(x_train: np.ndarray, e_train: np.ndarray,
     noise puts into the columns' products is taken out of the normal equations, and the
     directions of the columns whose energy it dominates (:data:`MAX_NOISE_SHARE`) or
     that they barely span (:data:`CORRECTED_EIGENVALUE_SHARE`) are left out, as a fit
-    cannot tell their signal from the noise. The fit is of the change from ``start``
-    (coefficients, zero if None): along the directions left out the coefficients keep
-    ``start``'s values, not zero."""
+    cannot tell their signal from the noise. The corrected fit is of the change from
+    ``start`` (coefficients, zero if None): along the directions left out the
+    coefficients keep ``start``'s values, not zero (least squares, which leaves no
+    direction out, does not take ``start``)."""
     scale = np.linalg.norm(x_train, axis=0)
     scale[scale == 0] = 1.0
     x = x_train / scale

@@ -36,7 +36,6 @@ AGREE_RATIO = 3.0
 REVERSING_COMMAND = "a command that crosses zero, so that the shaft turns both ways"
 
 
-
 class Simulated(Protocol):
     """A spec's simulation error on the run it was searched on (:meth:`Effect.search`):
     of one spec, or of several (simulated together, which a search of many values
