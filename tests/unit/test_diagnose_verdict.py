@@ -135,3 +135,19 @@ def test_a_train_run_at_one_speed_magnitude_is_named_in_a_note() -> None:
     assert "several speeds" in note and "coulomb_friction" in note, note
     plain = diagnose(*stand_runs({"coulomb_friction": PLANTED["coulomb_friction"]}))
     assert not any(n.startswith("the speed on TRAIN holds") for n in plain.notes)
+
+
+def test_a_stribeck_velocity_is_picked_by_simulating_train() -> None:
+    """Benchmark seed 277 case 80: Stribeck friction (Tc 9.3 mN·m, Ts 26.9 mN·m, ωs 3.9
+    rad/s) and cogging of order 10 under a current sine. TRAIN's equation error picked a
+    Stribeck velocity of 1.9-2.7 rad/s, a bump narrow enough to take up the sign flips of
+    the measured speed's noise at each reversal; it simulated HOLDOUT worse than Coulomb
+    friction (gap 1.8 against 0.80 %), and the verdict was `coulomb_friction+cogging`.
+    Simulating TRAIN picks 5.5 rad/s (HOLDOUT's gap 0.54 %)."""
+    case, train, holdout = case_runs(80, 277)
+    assert set(case.effects) == {"stribeck_friction", "cogging"}
+    result = diagnose(train, holdout)
+    assert sorted(result.verdict.split("+")) == ["cogging", "stribeck_friction"], result.message
+    ws = result.verdict_params["stribeck_friction"]["ws"]
+    truth = case.effects["stribeck_friction"]["ws"]
+    assert truth / 1.5 < ws < 1.5 * truth
