@@ -19,8 +19,11 @@ MAX_ORDER = 60
 IDENT_MAX_ORDER = 48
 #: Finest position order searched relative to the encoder: at least this many counts a cycle.
 MIN_COUNTS_PER_CYCLE = 16
-#: Fewest cycles of a cogging / ripple order over the positions a run covers.
-MIN_CYCLES_IN_RECORD = 3.0
+#: Fewest cycles of a cogging / ripple order over the positions a run covers: below two
+#: a harmonic is a slow function of position along the travel, which a level and a slope
+#: would take as well. (At three, a ripple of order 2 on runs of 1.3 revolutions was out
+#: of reach: benchmark seed 280 case 46.)
+MIN_CYCLES_IN_RECORD = 2.0
 #: Largest difference of the phases of an order fitted on TRAIN and on HOLDOUT that still
 #: agrees, rad. Both are fixed to the rotor, so runs that share the encoder's zero (as
 #: runs recorded from the drive's position actual value do) find the same phase; a

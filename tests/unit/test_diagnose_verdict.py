@@ -13,6 +13,7 @@ from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.scoring import Bench, Scored
 from stand.diagnosis.selection import revise
 from stand.diagnosis.signals import Signals, prepare
+from stand.effects.periodic import orders
 from stand.excitation import excitation
 from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams
@@ -151,3 +152,17 @@ def test_a_stribeck_velocity_is_picked_by_simulating_train() -> None:
     ws = result.verdict_params["stribeck_friction"]["ws"]
     truth = case.effects["stribeck_friction"]["ws"]
     assert truth / 1.5 < ws < 1.5 * truth
+
+
+def test_a_low_order_ripple_is_searched_on_a_run_of_little_travel() -> None:
+    """Benchmark seed 280 case 46: Stribeck friction and a torque ripple of order 2 (ε
+    0.20) under a current sine whose runs cover 1.32 and 1.43 revolutions. Orders were
+    searched from 3 cycles over the travel up (order 3 there), so the ripple was out of
+    reach and its 7.6 % gap `unexplained`; from 2 cycles (order 2) both are named."""
+    case, train, holdout = case_runs(46, 280)
+    assert case.effects["torque_ripple"]["N"] == 2
+    assert 2 in orders(prepare(train)) and 2 in orders(prepare(holdout))
+    result = diagnose(train, holdout)
+    assert sorted(result.verdict.split("+")) == ["stribeck_friction", "torque_ripple"], \
+        result.message
+    assert result.verdict_params["torque_ripple"]["N"] == 2
