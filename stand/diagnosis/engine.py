@@ -220,11 +220,13 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                             SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True,
                             noise=noise).test
              if chosen else None)
+    share = max((effects.get(name).approximation_share for name in chosen),
+                default=APPROXIMATION_SHARE)
     left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
                        along.test.p_value, named=bool(chosen),
                        along_shrink=along.test.shrink,
                        p_speed=speed.p_value if speed else 1.0,
-                       speed_shrink=speed.shrink if speed else 0.0)
+                       speed_shrink=speed.shrink if speed else 0.0, share=share)
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -257,33 +259,35 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         speed_structure_shrink=speed.shrink if speed else None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions + bench.set_aside
-               + _approximation_note(base.gap, final.gap, noise_gap, left)
+               + _approximation_note(base.gap, final.gap, noise_gap, left, share)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
-                                 along.test.p_value, speed) + _phase_note(along.phase_share)),
+                                 along.test.p_value, speed, share)
+               + _phase_note(along.phase_share)),
         steps=steps), traces
 
 
 def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float,
-                        left: bool) -> list[str]:
-    """Why a remainder beyond noise is not ``unexplained``: it is smaller than what the
-    verdict's effects explain (:func:`stand.diagnosis.noise.unexplained`)."""
+                        left: bool, share: float) -> list[str]:
+    """Why a remainder beyond noise is not ``unexplained``: it is smaller than ``share``
+    times what the verdict's effects explain (:func:`stand.diagnosis.noise.unexplained`)."""
     if left or verdict_gap <= UNEXPLAINED_FACTOR * noise_gap:
         return []
     beyond = beyond_noise_percent(verdict_gap, noise_gap)
     return [f"the verdict's effects leave {beyond:.2f} % beyond the noise "
-            f"({noise_gap:.2f} %), less than {APPROXIMATION_SHARE:g} times the "
+            f"({noise_gap:.2f} %), less than {share:g} times the "
             f"{explained_percent(nominal_gap, verdict_gap):.2f} % they explain: taken as "
             "their models' approximation of the physics, not as another effect; "
             "residual_where locates it"]
 
 
 def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,
-                    p_shapes: float, p_along: float, speed: PairedTest | None) -> list[str]:
+                    p_shapes: float, p_along: float, speed: PairedTest | None,
+                    share: float) -> list[str]:
     """Why a remainder is ``unexplained`` by its shape rather than its size (``speed``:
     the speed shapes' test after named effects, None with nothing named)."""
     if not left:
         return []
-    if beyond_approximation(nominal_gap, verdict_gap, noise_gap):
+    if beyond_approximation(nominal_gap, verdict_gap, noise_gap, share):
         return []
     shapes = (f"a torque growing with the speed beyond a friction level and a slope "
               f"p = {speed.p_value:.2g} (shrink of the equation error {speed.shrink:.2f})"

@@ -23,6 +23,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 
 from stand.diagnosis.model import FittedModel, ModelSpec, fit_residual_batch
+from stand.diagnosis.noise import APPROXIMATION_SHARE
 from stand.diagnosis.signals import Signals
 from stand.errors import InputError
 
@@ -81,6 +82,10 @@ class Effect:
     separated_by : str
         The experiment that tells this effect apart from others it can alias with, in
         words (said when a run cannot).
+    approximation_share : float
+        What its model may leave beyond noise of the effect, as a share of what it
+        explains, before a verdict naming it ends in ``unexplained`` by the remainder's
+        size (:data:`stand.diagnosis.noise.APPROXIMATION_SHARE`).
     spec_fields : tuple of str
         The :class:`ModelSpec` fields that model it (reset by :meth:`without`).
     """
@@ -94,6 +99,7 @@ class Effect:
     speed_test_only: ClassVar[bool] = False
     across_runs_on_one_tone: ClassVar[bool] = False
     separated_by: ClassVar[str] = "a broadband command (e.g. a PRBS) that crosses zero"
+    approximation_share: ClassVar[float] = APPROXIMATION_SHARE
     spec_fields: ClassVar[tuple[str, ...]] = ()
 
     # --- physics ---------------------------------------------------------------------
