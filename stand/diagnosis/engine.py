@@ -37,7 +37,6 @@ from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
 from stand.diagnosis.loop_input import loop_inputs
 from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, lag_share
 from stand.diagnosis.noise import (
-    APPROXIMATION_SHARE,
     UNEXPLAINED_FACTOR,
     beyond_approximation,
     beyond_noise_percent,
@@ -220,8 +219,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                             SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True,
                             noise=noise).test
              if chosen else None)
-    share = max((effects.get(name).approximation_share for name in chosen),
-                default=APPROXIMATION_SHARE)
+    share = effects.approximation_share(chosen)
     left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
                        along.test.p_value, named=bool(chosen),
                        along_shrink=along.test.shrink,

@@ -68,4 +68,14 @@ def nested_in(name: str) -> list[str]:
     return [outer.name for outer in all_effects() if name in outer.nests]
 
 
-__all__ = ["EFFECTS", "NONE", "UNEXPLAINED", "REGISTRY", "all_effects", "get", "nested_in"]
+def approximation_share(names: list[str]) -> float:
+    """What a verdict naming ``names`` may leave beyond noise, as a share of what it
+    explains: the largest of its effects' :attr:`~stand.effects.base.Effect.
+    approximation_share` (:data:`stand.diagnosis.noise.APPROXIMATION_SHARE` with none)."""
+    from stand.diagnosis.noise import APPROXIMATION_SHARE  # stand.diagnosis imports this
+
+    return max((get(name).approximation_share for name in names), default=APPROXIMATION_SHARE)
+
+
+__all__ = ["EFFECTS", "NONE", "UNEXPLAINED", "REGISTRY", "all_effects", "approximation_share",
+           "get", "nested_in"]

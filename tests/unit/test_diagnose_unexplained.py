@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from stand import effects
 from stand.diagnosis import diagnose
 from stand.diagnosis.noise import APPROXIMATION_SHARE, UNEXPLAINED_FACTOR, unexplained
 from stand.diagnosis.plots import worst_window
 from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
-from stand import effects
 from stand.effects import UNEXPLAINED
 from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs

@@ -27,7 +27,7 @@ import numpy as np
 
 from stand.diagnosis import diagnose
 from stand.diagnosis.noise import unexplained
-from stand.effects import EFFECTS, UNEXPLAINED, nested_in
+from stand.effects import EFFECTS, UNEXPLAINED, approximation_share, nested_in
 from stand.errors import StandError
 from stand.excitation import excitation
 from stand.ident.speed_loop import TARGET_COLUMN
@@ -432,7 +432,8 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
                        p_shapes, p_along, named=bool(named), p_speed=p_speed,
                        speed_shrink=row.get("speed_structure_shrink") or 0.0,
                        # rows written before the along test's shrink counted: any shrink
-                       along_shrink=row.get("position_structure_shrink", 1.0))
+                       along_shrink=row.get("position_structure_shrink", 1.0),
+                       share=approximation_share(named))
     words = named + ([UNEXPLAINED] if left else [])
     verdict = "+".join(words) if words else "none"
     shown = [p for p in verdict.split("+") if p != UNEXPLAINED] or [verdict]
