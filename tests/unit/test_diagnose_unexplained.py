@@ -18,7 +18,7 @@ from stand.diagnosis.noise import APPROXIMATION_SHARE, UNEXPLAINED_FACTOR, unexp
 from stand.diagnosis.plots import worst_window
 from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
 from stand.effects import UNEXPLAINED
-from tests.bench.diagnose.benchmark import case_runs
+from tests.bench.diagnose.benchmark import case_runs, rescore
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 #: Fan drag coefficient, N·m·s²/rad²: 2.5 mN·m at 100 rad/s.
@@ -110,6 +110,19 @@ def test_a_backlash_verdict_allows_its_rigid_contact_a_looser_approximation() ->
     result = diagnose(train, holdout)
     assert result.verdict == "backlash", result.message
     assert any("less than 2 times" in note for note in result.notes), result.notes
+
+
+def test_the_benchmark_rescores_a_row_with_its_verdicts_share() -> None:
+    # a named effect took 5 % to 4 % (4 % left beyond noise, 3 % explained): a backlash's
+    # approximation, but more than a cogging's model leaves
+    row = {"gap_percent": 5.0, "verdict_gap_percent": 4.0, "noise_gap_percent": 0.2,
+           "structure_p_value": 1.0, "position_structure_p_value": 1.0,
+           "position_structure_shrink": 0.0, "speed_structure_p_value": 1.0,
+           "speed_structure_shrink": 0.0}
+    backlash = rescore({**row, "verdict": "backlash+unexplained", "truth": ["backlash"]})
+    assert backlash["verdict"] == "backlash" and not backlash["unexplained"]
+    cogging = rescore({**row, "verdict": "cogging", "truth": ["cogging"]})
+    assert cogging["verdict"] == f"cogging+{UNEXPLAINED}" and cogging["unexplained"]
 
 
 def test_an_effect_of_the_vocabulary_leaves_nothing_unexplained() -> None:
