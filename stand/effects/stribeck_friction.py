@@ -58,8 +58,8 @@ class StribeckFriction(Effect):
     refit_on_holdout: ClassVar[bool] = True
     # ωs is picked by simulating TRAIN, not by its equation error: near a reversal the
     # measured speed's noise flips sign(ω) and a narrow Stribeck bump takes that up
-    # (dev 277/80, a current sine: equation error picked ωs 1.9, TRAIN's simulation
-    # 5.5, the truth 3.9)
+    # (benchmark seed 277 case 80, a current sine: equation error picked ωs 1.9 rad/s,
+    # TRAIN's simulation 5.5, the truth 3.9)
     picked_by_simulation: ClassVar[bool] = True
 
     Tc: float
