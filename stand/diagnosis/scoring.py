@@ -245,9 +245,6 @@ class _Gaps:
         self.bench = bench
         self.known: dict[ModelSpec, float] = {}
 
-    def __call__(self, spec: ModelSpec) -> float:
-        return self.many([spec])[0]
-
     def many(self, specs: list[ModelSpec]) -> list[float]:
         new = [spec for spec in dict.fromkeys(specs) if spec not in self.known]
         for spec, scored in zip(new, self.bench.score_many(new), strict=True):

@@ -38,11 +38,8 @@ REVERSING_COMMAND = "a command that crosses zero, so that the shaft turns both w
 
 
 class Simulated(Protocol):
-    """A spec's simulation error on the run it was searched on (:meth:`Effect.search`):
-    of one spec, or of several (simulated together, which a search of many values
-    should use)."""
-
-    def __call__(self, spec: ModelSpec) -> float: ...
+    """Specs' simulation errors on the run they were searched on (:meth:`Effect.search`),
+    the specs simulated together."""
 
     def many(self, specs: list[ModelSpec]) -> list[float]: ...
 
