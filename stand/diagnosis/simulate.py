@@ -33,6 +33,7 @@ from stand.diagnosis.model import (
     period_current,
     period_shape,
     periodic_mean,
+    ripple_on_offset,
     velocity_resolution,
 )
 from stand.diagnosis.signals import Signals
@@ -224,6 +225,10 @@ class _Stepper:
         self.current, self.one = of("current"), of("one")
         self.cog_sin, self.cog_cos = of("cog_sin"), of("cog_cos")
         self.rip_sin, self.rip_cos = of("rip_sin"), of("rip_cos")
+        # a ripple beside a current offset acts on the true current, i + one/current
+        # (:func:`stand.diagnosis.model.ripple_on_offset`)
+        self.rip_shift = (self.rows([c["one"] / c["current"] for c in coef])
+                          if ripple_on_offset(self.spec) else 0.0)
         self.c_omegas = [model.c_omega for model in models]
         self.c_theta = self.rows([model.c_theta for model in models])
         self.c_omega = self.rows(self.c_omegas)
@@ -269,7 +274,7 @@ class _Stepper:
             a = a + self.cog_sin * mean_sin + self.cog_cos * mean_cos
         if spec.ripple_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
-            a = a + i * (self.rip_sin * mean_sin + self.rip_cos * mean_cos)
+            a = a + (i + self.rip_shift) * (self.rip_sin * mean_sin + self.rip_cos * mean_cos)
         # without a Stribeck term the friction level is the constant Coulomb level
         level: np.ndarray | float = (
             self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.stribeck

@@ -5,11 +5,14 @@ cannot be separated, and the experiment that would) on runs that never reverse."
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
 
 from stand import effects
 from stand.diagnosis import Diagnosis, diagnose
 from stand.diagnosis.engine import ANCHOR_HORIZON_S, _nominal_spec
-from stand.diagnosis.model import ModelSpec
+from stand.diagnosis.model import ModelSpec, equation_residual, fit, ripple_on_offset
 from stand.diagnosis.scoring import Bench, Scored
 from stand.diagnosis.selection import revise
 from stand.diagnosis.signals import Signals, prepare
@@ -166,3 +169,39 @@ def test_a_low_order_ripple_is_searched_on_a_run_of_little_travel() -> None:
     assert sorted(result.verdict.split("+")) == ["stribeck_friction", "torque_ripple"], \
         result.message
     assert result.verdict_params["torque_ripple"]["N"] == 2
+
+
+def test_a_ripple_beside_a_current_offset_acts_on_the_true_current() -> None:
+    """A torque ripple multiplies the current the motor carries, ``i − i0``: fitted on
+    the measured current alone, the model misses ``−i0·ε·sin(Nθ + φ)``, a cogging torque
+    of the ripple's order that a cogging column then takes up. With the ripple acting on
+    ``i + one/current``, that column has nothing left to take."""
+    i0, eps, order = 0.4, 0.3, 4
+    train, _ = stand_runs({"current_offset": {"i0": i0},
+                           "torque_ripple": {"eps": eps, "N": order, "phi": 0.7}})
+    sig = prepare(train)
+    both = ModelSpec(offset=True, ripple_N=order)
+    model = fit(both, sig)
+    assert ripple_on_offset(both) and not ripple_on_offset(ModelSpec(ripple_N=order))
+    assert abs(-model.coef["one"] / model.coef["current"] - i0) < 0.02 * i0
+    ripple = effects.get("torque_ripple").params(model, None)["eps"]
+    assert abs(ripple - eps) < 0.05 * eps
+    left = float(np.sqrt(np.mean(equation_residual(model, sig) ** 2)))
+    cogged = fit(replace(both, cogging_N=order), sig)
+    with_cogging = float(np.sqrt(np.mean(equation_residual(cogged, sig) ** 2)))
+    # the cogging column of the ripple's order takes (almost) nothing: on the measured
+    # current alone it took i0·ε = 0.12 A of torque per Kt
+    assert with_cogging > 0.99 * left
+    cogging = effects.get("cogging").params(cogged, None)["Tcog_over_Kt_A"]
+    assert cogging < 0.1 * i0 * eps
+
+
+def test_a_ripple_beside_a_current_offset_is_named_without_a_cogging() -> None:
+    """Benchmark seed 279 case 189: a current offset of 7.7 A and a ripple of order 3 (ε
+    0.26). On the measured current alone the verdict took a cogging of order 3 of 2.1 A,
+    which is ``ε·i0`` (2.0 A) at the ripple's phase: `current_offset+torque_ripple+cogging`."""
+    case, train, holdout = case_runs(189, 279)
+    assert set(case.effects) == {"current_offset", "torque_ripple"}
+    result = diagnose(train, holdout)
+    assert sorted(result.verdict.split("+")) == ["current_offset", "torque_ripple"], \
+        result.message

@@ -31,7 +31,13 @@ import numpy as np
 
 from stand import effects as vocabulary
 from stand.diagnosis.engine import compare_on_holdout
-from stand.diagnosis.model import EDGE_SAMPLES, FittedModel, ModelSpec, regressors
+from stand.diagnosis.model import (
+    EDGE_SAMPLES,
+    FittedModel,
+    ModelSpec,
+    regressors,
+    ripple_on_offset,
+)
 from stand.diagnosis.signals import Signals
 from stand.diagnosis.significance import paired_improvement
 from stand.effects import EFFECTS
@@ -93,6 +99,12 @@ def _true_model(base: ModelSpec, motor: MotorParams, effects: Effects,
     columns = regressors(spec, sig)
     effective = sum(per.get(name, 0.0) * column for name, column in columns.items()
                     if name not in free)
+    if ripple_on_offset(spec) and "rip_sin" not in free:
+        # the ripple acts on the true current, i − i0 (``one`` is −i0 per unit current)
+        positions = regressors(ModelSpec(cogging_N=spec.ripple_N), sig)
+        effective = effective + per.get("one", 0.0) * (
+            per.get("rip_sin", 0.0) * positions["cog_sin"]
+            + per.get("rip_cos", 0.0) * positions["cog_cos"])
     keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
     x = np.column_stack([sig.omega_f, sig.filt(np.asarray(effective)),
                          *(sig.filt(columns[name]) for name in free)])[keep]
