@@ -14,8 +14,9 @@ from stand.diagnosis import Diagnosis, diagnose
 from stand.diagnosis.engine import ANCHOR_HORIZON_S, _nominal_spec
 from stand.diagnosis.model import ModelSpec, equation_residual, fit, ripple_on_offset
 from stand.diagnosis.scoring import Bench, Scored
-from stand.diagnosis.selection import revise
+from stand.diagnosis.selection import form_better, revise
 from stand.diagnosis.signals import Signals, prepare
+from stand.diagnosis.significance import PairedTest
 from stand.effects.periodic import orders
 from stand.excitation import excitation
 from stand.physics.effects import Effects
@@ -204,4 +205,26 @@ def test_a_ripple_beside_a_current_offset_is_named_without_a_cogging() -> None:
     assert set(case.effects) == {"current_offset", "torque_ripple"}
     result = diagnose(train, holdout)
     assert sorted(result.verdict.split("+")) == ["current_offset", "torque_ripple"], \
+        result.message
+
+
+def test_the_friction_form_needs_a_significant_fall_of_the_gap_not_the_least_shrink() -> None:
+    """The nesting friction form wins on HOLDOUT's paired test with a gap that falls: no
+    least shrink (the effect is in the verdict either way), and no gain on a typical
+    segment while the gap itself grows."""
+    assert form_better(PairedTest(t=6.0, p_value=3e-8, segments=40, shrink=0.036))
+    assert not form_better(PairedTest(t=9.0, p_value=2e-39, segments=40, shrink=-0.014))
+    assert not form_better(PairedTest(t=1.0, p_value=0.2, segments=40, shrink=0.3))
+
+
+def test_stribeck_friction_beside_a_large_ripple_is_named_by_its_form() -> None:
+    """Benchmark seed 281 case 107: Stribeck friction (static excess 68 %, ωs 15.8 rad/s)
+    and a torque ripple of order 19 (ε 0.20). Beside the ripple the Stribeck form is
+    consistent on both runs and simulates HOLDOUT better than Coulomb friction (gap
+    1.92 → 1.85 %, p 3e-8), a shrink below the 5 % an effect needs to enter: the verdict
+    was `coulomb_friction+torque_ripple`."""
+    case, train, holdout = case_runs(107, 281)
+    assert set(case.effects) == {"stribeck_friction", "torque_ripple"}
+    result = diagnose(train, holdout)
+    assert sorted(result.verdict.split("+")) == ["stribeck_friction", "torque_ripple"], \
         result.message
