@@ -29,7 +29,7 @@ from scipy.stats import f as f_dist
 from scipy.stats import t as student_t
 
 from stand import effects as effect_registry
-from stand.diagnosis.model import ModelSpec
+from stand.diagnosis.model import RIPPLE_OFFSET_PASSES, ModelSpec, ripple_on_offset
 from stand.effects.coulomb_friction import (
     MAX_LEVEL_SLOPE_FACTOR,
     CoulombFriction,
@@ -172,6 +172,26 @@ class Fitter:
         if self.estimator == "bc":
             noise = self.design.noise_gram(spec, names, self.design.rows(spec, False),
                                            settling_share)
+        est = self._bounded(names, y, X, Z, noise, spec)
+        if ripple_on_offset(spec):
+            # the ripple multiplies the true current, i − i0 (i0 = −one/current): its
+            # share of the position-periodic torque at the ripple's order, by a fixed
+            # point as the diagnosis fits it (:func:`stand.diagnosis.model.fit`)
+            order = replace(spec, cogging_N=spec.ripple_N)
+            positions = np.column_stack([self.design.column(order, name)
+                                         for name in ("cog_sin", "cog_cos")])
+            positions = positions[self.design.rows(spec, iv)]
+            for _ in range(RIPPLE_OFFSET_PASSES):
+                shift = est.value("one") / est.value("current")
+                ripple = np.array([est.value("rip_sin"), est.value("rip_cos")])
+                est = self._bounded(names, y - shift * (positions @ ripple), X, Z, noise,
+                                    spec)
+        return est
+
+    def _bounded(self, names: list[str], y: np.ndarray, X: np.ndarray, Z: np.ndarray,
+                 noise: np.ndarray | None, spec: ModelSpec) -> Estimate:
+        """The estimate of ``y`` on ``X`` (instruments ``Z``) with every timing column's
+        share of the period held within its bounds."""
         est = solve_blocks(names, y, X, Z, self.blocks, self.source, noise)
         fixed: dict[str, float] = {}
         # with a delay k ≥ 1, a timing w < 0 is the delay k − 1 read later in its period

@@ -251,3 +251,16 @@ def test_a_speed_that_holds_one_magnitude_is_named_in_a_warning() -> None:
     spread = current_run({"coulomb_friction": {"Tc": 0.004}})
     assert level_slope_factor(prepare(spread).omega_f) < MAX_LEVEL_SLOPE_FACTOR / 5
     assert not any("holds nearly one magnitude" in w for w in identify_run(spread).warnings)
+
+
+def test_a_ripple_beside_a_current_offset_is_identified_on_the_true_current() -> None:
+    # The ripple multiplies the current the motor carries, i − i0. On the measured
+    # current alone, forced offset + ripple fitted ε 0.22 for a true 0.3 here, and `auto`
+    # added a cogging of the ripple's order and 0.090 A for the −i0·ε·sin(Nθ + φ) left
+    # over (i0·ε = 0.09 A).
+    run = current_run({"current_offset": {"i0": 0.3},
+                       "torque_ripple": {"eps": 0.3, "N": 4, "phi": 0.7}})
+    forced = identify_run(run, effects="current_offset,torque_ripple")
+    assert abs(forced.effect_params["torque_ripple"]["eps"] - 0.3) < 0.015
+    assert abs(forced.Kt_over_J / KT_OVER_J - 1) < 0.01
+    assert "cogging" not in identify_run(run).effects
