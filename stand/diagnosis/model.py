@@ -595,11 +595,11 @@ def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
     xdot, x, u = _stack(spec, sig)
     sums = QSums.zeros(x.shape[1], u.shape[1]).add(xdot, x, u, sig.dt_s)
     result = solve(sums)
+    names = spec.names()
     if ripple_on_offset(spec):
         # the ripple multiplies the true current, i − i0 (i0 = −one/current): a torque
         # bilinear in the offset and the ripple, fitted by a fixed point on its share of
         # the position-periodic torque at the ripple's order (:func:`ripple_on_offset`)
-        names = spec.names()
         positions = _ripple_positions(spec, sig)[fit_rows(sig, spec.delay)]
         for _ in range(RIPPLE_OFFSET_PASSES):
             B = np.asarray(result.B)[-1]
@@ -609,7 +609,6 @@ def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
             target[:, -1] -= shift * (positions @ ripple)
             result = solve(QSums.zeros(x.shape[1], u.shape[1]).add(target, x, u, sig.dt_s))
     A, B = _from_fitting_form(spec, np.asarray(result.A)[-1], np.asarray(result.B)[-1])
-    names = spec.names()
     coef = {name: float(B[j]) for j, name in enumerate(names)}
     if not coef["current"] > 0 and spec == ModelSpec():
         raise NotExcitedError(
