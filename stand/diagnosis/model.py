@@ -17,6 +17,7 @@ current; the same segments are used for every candidate.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -576,6 +577,15 @@ def ripple_on_offset(spec: ModelSpec) -> bool:
 RIPPLE_OFFSET_PASSES = 4
 
 
+def offset_ripple(value: Callable[[str], float], positions: np.ndarray) -> np.ndarray:
+    """What a ripple beside a current offset adds for acting on the true current
+    (:func:`ripple_on_offset`), per inertia: ``(one/current)·(rip_sin·sin Nθ + rip_cos·
+    cos Nθ)``, from the model's coefficients ``value(name)`` and ``positions`` (samples ×
+    2: the sine and cosine of the ripple's order, in the columns' unit)."""
+    ripple = np.array([value("rip_sin"), value("rip_cos")])
+    return np.asarray(value("one") / value("current") * (positions @ ripple))
+
+
 def _ripple_positions(spec: ModelSpec, sig: Signals) -> np.ndarray:
     """The filtered position terms of the ripple's order (samples × 2: sine, cosine),
     the cogging columns of that order."""
@@ -602,11 +612,9 @@ def fit(spec: ModelSpec, sig: Signals) -> FittedModel:
         # the position-periodic torque at the ripple's order (:func:`ripple_on_offset`)
         positions = _ripple_positions(spec, sig)[fit_rows(sig, spec.delay)]
         for _ in range(RIPPLE_OFFSET_PASSES):
-            B = np.asarray(result.B)[-1]
-            shift = B[names.index("one")] / B[names.index("current")]
-            ripple = B[[names.index("rip_sin"), names.index("rip_cos")]]
+            fitted = dict(zip(names, np.asarray(result.B)[-1], strict=True))
             target = xdot.copy()
-            target[:, -1] -= shift * (positions @ ripple)
+            target[:, -1] -= offset_ripple(fitted.__getitem__, positions)
             result = solve(QSums.zeros(x.shape[1], u.shape[1]).add(target, x, u, sig.dt_s))
     A, B = _from_fitting_form(spec, np.asarray(result.A)[-1], np.asarray(result.B)[-1])
     coef = {name: float(B[j]) for j, name in enumerate(names)}
@@ -695,9 +703,7 @@ def equation_residual(model: FittedModel, sig: Signals) -> np.ndarray:
     pred = (model.c_theta * sig.theta_f + model.c_omega * sig.omega_f
             + u @ np.array([model.coef[name] for name in model.spec.names()]))
     if ripple_on_offset(model.spec):
-        c = model.coef
-        pred = pred + (c["one"] / c["current"]) * (
-            _ripple_positions(model.spec, sig) @ np.array([c["rip_sin"], c["rip_cos"]]))
+        pred = pred + offset_ripple(model.coef.__getitem__, _ripple_positions(model.spec, sig))
     return np.asarray(sig.accel_f - pred)
 
 
@@ -708,7 +714,7 @@ def nominal() -> ModelSpec:
 
 __all__ = ["KICK_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
            "fit", "fit_residual_batch", "interval_current", "kick_basis", "lag_share",
-           "lag_slope", "nominal",
+           "lag_slope", "nominal", "offset_ripple",
            "period_current", "period_shape", "supply_basis", "supply_classes", "supply_within_period",
            "periodic_column", "periodic_mean",
            "regressors", "ripple_on_offset", "shifted", "velocity_resolution", "velocity_sign"]

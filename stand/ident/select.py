@@ -29,7 +29,12 @@ from scipy.stats import f as f_dist
 from scipy.stats import t as student_t
 
 from stand import effects as effect_registry
-from stand.diagnosis.model import RIPPLE_OFFSET_PASSES, ModelSpec, ripple_on_offset
+from stand.diagnosis.model import (
+    RIPPLE_OFFSET_PASSES,
+    ModelSpec,
+    offset_ripple,
+    ripple_on_offset,
+)
 from stand.effects.coulomb_friction import (
     MAX_LEVEL_SLOPE_FACTOR,
     CoulombFriction,
@@ -182,10 +187,8 @@ class Fitter:
                                          for name in ("cog_sin", "cog_cos")])
             positions = positions[self.design.rows(spec, iv)]
             for _ in range(RIPPLE_OFFSET_PASSES):
-                shift = est.value("one") / est.value("current")
-                ripple = np.array([est.value("rip_sin"), est.value("rip_cos")])
-                est = self._bounded(names, y - shift * (positions @ ripple), X, Z, noise,
-                                    spec)
+                est = self._bounded(names, y - offset_ripple(est.value, positions), X, Z,
+                                    noise, spec)
         return est
 
     def _bounded(self, names: list[str], y: np.ndarray, X: np.ndarray, Z: np.ndarray,

@@ -35,6 +35,7 @@ from stand.diagnosis.model import (
     EDGE_SAMPLES,
     FittedModel,
     ModelSpec,
+    offset_ripple,
     regressors,
     ripple_on_offset,
 )
@@ -102,9 +103,9 @@ def _true_model(base: ModelSpec, motor: MotorParams, effects: Effects,
     if ripple_on_offset(spec) and "rip_sin" not in free:
         # the ripple acts on the true current, i − i0 (``one`` is −i0 per unit current)
         positions = regressors(ModelSpec(cogging_N=spec.ripple_N), sig)
-        effective = effective + per.get("one", 0.0) * (
-            per.get("rip_sin", 0.0) * positions["cog_sin"]
-            + per.get("rip_cos", 0.0) * positions["cog_cos"])
+        effective = effective + offset_ripple(
+            lambda name: per.get(name, 0.0),
+            np.column_stack([positions["cog_sin"], positions["cog_cos"]]))
     keep = slice(EDGE_SAMPLES, len(sig) - EDGE_SAMPLES - spec.delay)
     x = np.column_stack([sig.omega_f, sig.filt(np.asarray(effective)),
                          *(sig.filt(columns[name]) for name in free)])[keep]
