@@ -24,7 +24,6 @@ The effects and everything effect-specific come from the registry (:mod:`stand.e
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -127,7 +126,7 @@ def compare_on_holdout(train: Run, holdout: Run,
     InputError
         Runs too short for a holdout test.
     """
-    bench, base_spec, _, _, _ = _driven(train, holdout, horizon_s, False, supply)
+    bench, base_spec, _, _ = _driven(train, holdout, horizon_s, False, supply)
     nominal = bench.score(base_spec)
     reference = (nominal if reference_of is None
                  else bench.score_model(reference_of(base_spec, bench.train)))
@@ -191,8 +190,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         raise InputError(f"horizon_s must be > 0 s, got {horizon_s}")
     if max_effects < 1:
         raise InputError(f"max_effects must be >= 1, got {max_effects}")
-    bench, base_spec, sampled, input_notes, unreconstructed = _driven(
-        train, holdout, horizon_s, spring, supply)
+    bench, base_spec, sampled, input_notes = _driven(train, holdout, horizon_s, spring, supply)
     tr, ho = bench.train, bench.holdout
     base = bench.score(base_spec)
     singles = {name: bench.candidate(name, base) for name in effects.EFFECTS}
@@ -209,9 +207,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     chosen, final, steps = select(bench, base, singles, {e.effect: e for e in scores},
                                    max_effects)
     floor = noise_floor(ho, bench.scale)
-    sensor_gap = noise_gap_percent(sampled, bench.scale, bench.seg.horizon, base.model)
-    input_gap = input_weight.spread_percent(bench, base_spec) if unreconstructed else 0.0
-    noise_gap = math.hypot(sensor_gap, input_gap)
+    noise_gap = noise_gap_percent(sampled, bench.scale, bench.seg.horizon, base.model)
     residual_final = equation_residual(final.model, ho)
     residual_train = equation_residual(final.model, tr)
     noise = (current_noise(final.model, tr, residual_train),
@@ -254,30 +250,18 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         residual_where=locate(residual_final, ho),
         model={**_nominal_dict(final.model, kt), **verdict_params},
         noise_gap_percent=noise_gap,
-        input_gap_percent=input_gap,
         structure_p_value=structure.test.p_value,
         position_structure_p_value=along.test.p_value,
         position_structure_shrink=along.test.shrink,
         speed_structure_p_value=speed.p_value if speed else None,
         speed_structure_shrink=speed.shrink if speed else None,
-        notes=(input_notes + _input_gap_note(sensor_gap, input_gap)
-               + limits(tr, bench.tone_hz) + aliases(bench.aliased)
+        notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions + bench.set_aside
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
                                  along.test.p_value, speed, share)
                + _phase_note(along.phase_share)),
         steps=steps), traces
-
-
-def _input_gap_note(sensor_gap: float, input_gap: float) -> list[str]:
-    """What the noise gap takes of the input reconstruction's uncertainty
-    (:func:`stand.diagnosis.input_weight.spread_percent`), where it takes any."""
-    if input_gap <= 0.0:
-        return []
-    return [f"the current between samples is not reconstructed on this run: the spread of "
-            f"the input reconstructions over HOLDOUT, {input_gap:.2f} %, counts as noise beside "
-            f"the sensors' {sensor_gap:.2f} % (noise gap {math.hypot(sensor_gap, input_gap):.2f} %)"]
 
 
 def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float,
@@ -315,15 +299,11 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
 
 
 def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
-            supply: DriveSupply | None
-            ) -> tuple[Bench, ModelSpec, Signals, list[str], bool]:
+            supply: DriveSupply | None) -> tuple[Bench, ModelSpec, Signals, list[str]]:
     """The two runs prepared with the input current that simulates TRAIN best, and the
     nominal spec for it; also HOLDOUT with its sampled current (the noise gap's current
-    noise is the sensor's), notes on what drives the models (``supply``: the drive's,
-    whose current limit clips the speed law, where known), and whether the current
-    between samples goes unreconstructed: a speed loop whose law does not hold, whose
-    kicks between samples the sampled current misses by an amount no run identifies
-    (:func:`stand.diagnosis.input_weight.spread_percent`).
+    noise is the sensor's) and notes on what drives the models (``supply``: the drive's,
+    whose current limit clips the speed law, where known).
 
     The sampled current's reconstructions (:func:`_nominal_spec`) compete on TRAIN with
     the speed loop's current where both runs hold their target and the PI law holds on
@@ -346,7 +326,7 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
     notes = [x.note for x in (law_train, law_holdout) if x.note and not x.from_law]
     notes = notes[:1] + _kick_note(spec) + _supply_note(spec, bench.train)
     if not law_train.from_law:
-        return bench, spec, ho, notes, bench.train.target_change is not None
+        return bench, spec, ho, notes
     law_bench = Bench(law_train.signals, law_holdout.signals, horizon_s)
     # both inputs compared with the current samples shifted back by the delay the law's
     # fit finds them late by: a model that misplaces every current by it tells nothing
@@ -361,12 +341,12 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
             f"driven by the PI speed loop's current over each sample period ({law_train.note}; "
             f"TRAIN simulated to {law_gap:.2f} %, {gap:.2f} % with the sampled current{late}"
             + ("; the drive's lag between the law's command and its current, from both "
-               "runs, refined with each model" if law_spec.lag else "") + ")"], False
+               "runs, refined with each model" if law_spec.lag else "") + ")"]
     return bench, spec, ho, [
         f"the PI speed law holds at the samples ({law_train.note}), but its current "
         f"simulates TRAIN to {law_gap:.2f} %, the sampled current to {gap:.2f} %{late}: the "
         "sampled current drives the models (the loop may saturate its voltage between "
-        "samples)", *_kick_note(spec), *_supply_note(spec, bench.train)], False
+        "samples)", *_kick_note(spec), *_supply_note(spec, bench.train)]
 
 
 def _law_spec(law_bench: Bench, spring: bool, lag_sd_s: float,

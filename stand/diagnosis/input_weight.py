@@ -25,8 +25,6 @@ import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from stand.diagnosis import kicks
 from stand.diagnosis.model import ModelSpec, supply_classes, supply_within_period
 from stand.errors import NotExcitedError
@@ -41,9 +39,6 @@ INPUT_WEIGHTS: tuple[float, ...] = (0.5, 0.625, 0.75, 0.875, 1.0)
 PERIOD_MEAN_WEIGHT = 0.0
 #: Halvings of the weight step around the best grid weight (to 1/64 of a period).
 WEIGHT_REFINEMENTS = 3
-#: Standard deviation of a weight spread evenly over the grid's range, per unit of the
-#: range (:func:`spread_percent`).
-EVEN_SPREAD_SD = 1.0 / math.sqrt(12.0)
 
 
 def pick(on_train: Bench, spec: ModelSpec) -> ModelSpec:
@@ -105,28 +100,4 @@ def pick(on_train: Bench, spec: ModelSpec) -> ModelSpec:
     return weighted(*best)
 
 
-def spread_percent(bench: Bench, spec: ModelSpec) -> float:
-    """What the input reconstruction's own uncertainty gives of HOLDOUT's gap, % of its
-    speed scale, on a run that does not identify it.
-
-    Under a speed loop whose PI law does not hold (a loop that saturates its voltage,
-    a target that changes at every sample, :mod:`.loop_input`), the current between two
-    samples is the loop's response to the motion, with a kick at each change of the
-    target; no weight of the two samples is that current, and the one TRAIN picks says
-    little of HOLDOUT's. The models are then as uncertain as their input: taken as a
-    weight anywhere in the grid's range, evenly, the simulated speed (to first order
-    linear in the weight) spreads by :data:`EVEN_SPREAD_SD` times its change over the
-    range. So the nominal ``spec`` is identified on TRAIN at the grid's two ends and
-    simulated on HOLDOUT, and the RMS of the difference of the two free runs, times
-    that share, is the spread; 0 where a weight at either end gives no positive current
-    gain (:func:`pick` skips those)."""
-    try:
-        low, high = bench.score_many([replace(spec, input_weight=w)
-                                      for w in (INPUT_WEIGHTS[0], INPUT_WEIGHTS[-1])])
-    except NotExcitedError:
-        return 0.0
-    change = float(np.sqrt(np.mean((high.error - low.error) ** 2)))
-    return 100.0 * EVEN_SPREAD_SD * change / bench.scale
-
-
-__all__ = ["EVEN_SPREAD_SD", "INPUT_WEIGHTS", "WEIGHT_REFINEMENTS", "pick", "spread_percent"]
+__all__ = ["INPUT_WEIGHTS", "WEIGHT_REFINEMENTS", "pick"]

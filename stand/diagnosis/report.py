@@ -150,13 +150,7 @@ class Diagnosis(JsonResult):
         1/(A·s²), ``D_over_J`` 1/s, ...) and each effect's parameters under its name.
     noise_gap_percent : float
         Gap that noise alone gives (quantization and current noise through the free
-        run, and ``input_gap_percent`` in quadrature), %; a gap above
-        ``UNEXPLAINED_FACTOR`` times it is beyond noise.
-    input_gap_percent : float or None
-        What the input reconstruction's own uncertainty adds to the noise gap, %: on a
-        speed-loop run whose PI law does not hold, the spread of HOLDOUT's free run
-        over the input weights (:func:`stand.diagnosis.input_weight.spread_percent`);
-        0 where the current between samples is reconstructed.
+        run), %; a gap above ``UNEXPLAINED_FACTOR`` times it is beyond noise.
     structure_p_value : float or None
         p-value of the test for structure beyond noise in what the verdict's effects
         leave (:func:`stand.diagnosis.structure.structure_test`): shapes no vocabulary
@@ -190,7 +184,6 @@ class Diagnosis(JsonResult):
     residual_where: Where | None = None
     model: dict[str, object] = field(default_factory=dict)
     noise_gap_percent: float | None = None
-    input_gap_percent: float | None = None
     structure_p_value: float | None = None
     position_structure_p_value: float | None = None
     position_structure_shrink: float | None = None

@@ -31,7 +31,7 @@ from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import Run, write_run
-from tests.bench.diagnose.benchmark import case_runs, draw_case, simulate_case
+from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import stand_runs
 from tests.unit.test_speed_loop import speed_run
 
@@ -341,38 +341,3 @@ def test_kicks_fitted_on_held_targets_carry_to_a_target_that_changes_every_sampl
     result = diagnose(_saturating_run(3, 60.0, 0.2), _saturating_run(4, 60.0, 0.1, "sine"))
     assert any("kicks of the current between samples" in n for n in result.notes)
     assert result.gap_percent < 5.0, result.message
-
-
-def test_an_unreconstructed_speed_loop_counts_its_input_spread_as_noise() -> None:
-    # Dev benchmark seed 274 case 620: an effect-free stand under a speed loop whose
-    # target is a sampled sine (it changes at every sample, so the PI law cannot be
-    # fitted and the sampled current drives the models). Its gap, 1.15 %, was 4.6 times
-    # the sensors' noise gap (0.25 %) and the verdict `unexplained`. What the samples
-    # miss of the current between them is no effect of the stand: the spread of HOLDOUT's
-    # free run over the input weights (0.42 %) counts as noise, and the verdict is none.
-    case, train, holdout = case_runs(620, 274)
-    assert case.mode == "speed" and case.kind == "sine" and not case.effects
-    result = diagnose(train, holdout)
-    assert result.verdict == "none", result.message
-    assert result.input_gap_percent is not None and result.noise_gap_percent is not None
-    assert 0.2 < result.input_gap_percent < result.noise_gap_percent
-    assert any(n.startswith("the current between samples is not reconstructed") for n in
-               result.notes)
-
-
-def test_an_outside_effect_under_an_unreconstructed_speed_loop_stays_unexplained() -> None:
-    # Dev benchmark seed 260 case 214 (tuning set): a torque constant drifting over the
-    # run, under a speed loop whose law does not hold. The input's spread (0.26 %) widens
-    # the noise gap, to 0.28 %, but the drift's gap, 1.32 %, is still beyond it.
-    case = draw_case(214, 260, outside_share=0.3, outside_set="tuning")
-    assert "kt_drift" in case.outside and case.mode == "speed"
-    train, holdout = (Run(simulate_case(case, k), name)
-                      for k, name in enumerate(("train", "holdout")))
-    result = diagnose(train, holdout)
-    assert result.input_gap_percent is not None and result.input_gap_percent > 0.1
-    assert result.verdict == "unexplained", result.message
-
-
-def test_a_current_mode_run_adds_no_input_spread() -> None:
-    result = diagnose(*stand_runs({}))
-    assert result.input_gap_percent == 0.0
