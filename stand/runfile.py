@@ -21,10 +21,17 @@ from stand.errors import RunFileError
 
 RunKind = Literal["single", "step", "reducer"]
 
+#: Optional column of a single-motor run: the drive's current averaged over the sample
+#: period that ends at the row's instant (the mean of its current loop's samples since
+#: the previous SYNC), A. Where both runs of a diagnosis hold it, it drives the models
+#: in place of a reconstruction of the current between samples
+#: (:func:`stand.diagnosis.engine.diagnose`).
+CURRENT_MEAN_COLUMN = "current_mean_A"
+
 #: Required and optional columns of each kind of run file (CONTRACT §1).
 COLUMNS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "single": (("time_s", "current_A", "position_rad"),
-               ("voltage_V", "velocity_rad_s", "speed_target_rad_s")),
+               ("voltage_V", "velocity_rad_s", "speed_target_rad_s", CURRENT_MEAN_COLUMN)),
     "step": (("time_s", "voltage_V", "velocity_rad_s"), ("current_A", "position_rad")),
     "reducer": (
         ("time_s", "current_in_A", "position_in_rad", "current_out_A", "position_out_rad"),

@@ -23,7 +23,12 @@ import numpy as np
 from scipy.stats import chi2
 
 from stand.diagnosis.model import ModelSpec
-from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare, quantization_step
+from stand.diagnosis.signals import (
+    MIN_DIAGNOSE_SAMPLES,
+    period_mean_current,
+    prepare,
+    quantization_step,
+)
 from stand.errors import InputError, NotExcitedError
 from stand.ident.checks import effect_params, rest_warning, run_warnings
 from stand.ident.closed_loop import ClosedLoopFit, fit_closed_loop
@@ -36,7 +41,7 @@ from stand.ident.select import Fitter, model_disagreement, model_variance, parse
 from stand.ident.speed_loop import TARGET_COLUMN, SpeedLoop, fit_speed_loop, speed_loop
 from stand.ident.supply import DriveSupply
 from stand.jsonable import JsonResult
-from stand.runfile import Run
+from stand.runfile import CURRENT_MEAN_COLUMN, Run
 
 #: Estimators (:class:`stand.ident.select.Fitter`); ``auto`` picks ``bc`` or ``iv`` per run.
 ESTIMATORS: tuple[str, ...] = ("auto", "iv", "bc", "ls")
@@ -111,6 +116,10 @@ class IdentifyResult(JsonResult):
         plus the interpolation weight).
     source : str
         The run identified (its file name).
+    current_input : str
+        The current the equation-error model is driven by: ``samples`` (the sampled current, its timing
+        within the period fitted), ``current_mean_A`` (the drive's own mean over each
+        period) or ``speed_law`` (the PI speed law's current over each period).
     """
 
     A: list[list[float]]
@@ -136,6 +145,7 @@ class IdentifyResult(JsonResult):
     estimator: str
     current_timing_samples: float
     source: str = ""
+    current_input: str = "samples"
 
 
 def _check_current_varies(current: np.ndarray, source: str) -> None:
@@ -297,13 +307,17 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
     sigma = noise_sigma(sig.current)
     h = half_width or auto_half_width(sig.current, sigma)
     first = "bc" if estimator == "auto" else estimator
-    # the measured current, and under a speed loop whose law holds, the current over
-    # each period from that law (its own timing): the smaller held-out error decides
-    currents: list[tuple[np.ndarray, float | None]] = [(sig.current, None)]
+    # the measured current; the drive's own mean over each period where it reports one;
+    # and under a speed loop whose law holds, the current over each period from that law
+    # (its own timing): the smaller held-out error decides
+    currents: list[tuple[np.ndarray, float | None, str]] = [(sig.current, None, "samples")]
+    if CURRENT_MEAN_COLUMN in run:
+        currents.append((period_mean_current(run) - no_load_current_A, 0.0,
+                         CURRENT_MEAN_COLUMN))
     if loop is not None and loop.holds:
-        currents.append((loop.period_current - no_load_current_A, 0.0))
+        currents.append((loop.period_current - no_load_current_A, 0.0, "speed_law"))
     fits = []
-    for current, known_timing in currents:
+    for current, known_timing, source in currents:
         design = Design.build(replace(sig, current=current, cache={}), h,
                               2 * h + 1 + INSTRUMENT_MARGIN)
         fitter = Fitter(design, first, run.source)
@@ -313,9 +327,11 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
             # timing would absorb part of the loop's kick between samples
             fitter.timing = False
         chosen = select(fitter, wanted, input_weight=known_timing)
-        fits.append((float(chosen.estimate.cv_sse.sum()), known_timing is not None, design,
-                     fitter, chosen))
-    _, from_loop, design, fitter, chosen = min(fits, key=lambda fit: fit[0])
+        fits.append((float(chosen.estimate.cv_sse.sum()), source, design, fitter, chosen))
+    _, source, design, fitter, chosen = min(fits, key=lambda fit: fit[0])
+    from_loop = source == "speed_law"
+    if source == CURRENT_MEAN_COLUMN:
+        loop = None  # the drive measured the current over each period: nothing to rebuild
     spec, est = chosen.spec, chosen.estimate
     if estimator == "auto":
         estimator, spec, est = _pick_estimator(fitter, spec, est)
@@ -351,8 +367,9 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
     params = effect_params(spec, chosen.effects, est)
     warnings += run_warnings(run, est, chosen.notes) + rest_warning(design)
     timing = spec.delay + current_weight(spec, est)
-    return (_result(run, est, "default", no_load_current_A, h, chosen.effects, params,
-                    warnings, estimator, timing), refined is not None and refined.holds)
+    result = _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
+                     warnings, estimator, timing)
+    return replace(result, current_input=source), refined is not None and refined.holds
 
 
 def missed_kick_variance(loop: SpeedLoop, est: Estimate, dt: float) -> float:

@@ -49,6 +49,9 @@ class Measurement:
     current_A: float
     velocity_rad_s: float
     voltage_V: float
+    #: The current averaged over the sample period that ends now, through the same
+    #: sensor (its delay, offset and noise), A.
+    current_mean_A: float = 0.0
 
 
 def substeps_for(dt_s: float) -> int:
@@ -85,18 +88,29 @@ class Sensors:
         self.offset_A = effects.current_offset.i0 if effects.current_offset else 0.0
         delay = effects.delay.k if effects.delay else 0
         self.current_history: deque[float] = deque(maxlen=delay + 1)
+        self.mean_history: deque[float] = deque(maxlen=delay + 1)
+        # the period mean's noise from its own stream: the sampled current's draws, and
+        # so every run simulated before the period mean was recorded, stay as they were
+        self.mean_rng = rng.spawn(1)[0]
         self.last_position: float | None = None
 
     def read(self, theta: float, omega: float, current: float, voltage: float,
-             dt_s: float) -> Measurement:
+             dt_s: float, current_mean: float = 0.0) -> Measurement:
+        """The sensors now; ``current_mean`` is the current averaged over the period
+        that ends now, A."""
         p = self.params
         position = theta
         if self.step_rad:
             position = math.floor(theta / self.step_rad) * self.step_rad
         self.current_history.append(current)
         measured_i = self.current_history[0] + self.offset_A  # k samples ago
+        self.mean_history.append(current_mean)
+        measured_mean = self.mean_history[0] + self.offset_A
         if p.current_noise_A:
             measured_i += p.current_noise_A * self.rng.standard_normal()
+            # as noisy as one sample: a drive's average of its current loop's samples
+            # is at most that, and no quieter average is assumed
+            measured_mean += p.current_noise_A * self.mean_rng.standard_normal()
         if p.velocity_noise_rad_s is not None:
             velocity = omega + p.velocity_noise_rad_s * self.rng.standard_normal()
         elif self.last_position is None:
@@ -106,7 +120,7 @@ class Sensors:
         self.last_position = position
         if p.voltage_noise_V:
             voltage += p.voltage_noise_V * self.rng.standard_normal()
-        return Measurement(position, measured_i, velocity, voltage)
+        return Measurement(position, measured_i, velocity, voltage, measured_mean)
 
 
 class MotorPlant:
@@ -140,6 +154,8 @@ class MotorPlant:
         #: Acceleration over the last sub-step, rad/s² (predicts the mid-step speed).
         self.accel = 0.0
         self.time_s = 0.0
+        #: The armature current averaged over the last :meth:`advance`, A.
+        self.period_current = 0.0
         e = self.effects
         self.coulomb, self.static_excess, self.stribeck_ws = friction_levels(e)
         self.cogging = (e.cogging.Tcog, e.cogging.N, e.cogging.phi) if e.cogging else None
@@ -164,7 +180,7 @@ class MotorPlant:
     def measure(self, dt_s: float, port: int = 0) -> Measurement:
         """Read the sensors now; ``dt_s`` is the sample period (for the velocity)."""
         return self.sensors.read(self.theta, self.omega, self.armature.i,
-                                 self.armature.v, dt_s)
+                                 self.armature.v, dt_s, self.period_current)
 
     def advance(self, dt_s: float) -> None:
         """Advance the physics by ``dt_s`` seconds (the scheme: the module's docstring)."""
@@ -180,11 +196,13 @@ class MotorPlant:
         theta_l, omega_l = self.theta_load, self.omega_load
         extra = self.extra_torque
         damp = 0.5 * h * D / J
+        charge = 0.0
         for sub in range(n):
             i_start = arm.i
             theta_m = theta + 0.5 * h * omega  # position Verlet: forces at mid-step
             omega_m = omega + 0.5 * h * accel
             arm.step(h, omega_m)
+            charge += arm.i_mean
             gain = 1.0 + ripple[0] * math.sin(ripple[1] * theta_m + ripple[2]) if ripple else 1.0
             load = C * theta_m  # torques other than the motor's, viscous friction
             if extra is not None:
@@ -214,6 +232,7 @@ class MotorPlant:
             accel = (omega_new - omega) / h
             theta, omega = theta_new, omega_new
         self.theta, self.omega, self.accel = theta, omega, accel
+        self.period_current = charge / n
         self.theta_load, self.omega_load = theta_l, omega_l
         self.time_s += dt_s
 

@@ -13,7 +13,7 @@ import numpy as np
 from stand.errors import InputError
 from stand.physics.plant import MotorPlant
 from stand.physics.reducer import ReducerPlant
-from stand.runfile import Run, check_columns
+from stand.runfile import CURRENT_MEAN_COLUMN, Run, check_columns
 
 
 def _commands(commands: Sequence[tuple[str, np.ndarray]], ports: int) -> int:
@@ -25,8 +25,11 @@ def _commands(commands: Sequence[tuple[str, np.ndarray]], ports: int) -> int:
     return lengths.pop()
 
 
-def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: float) -> Run:
-    """Run ``plant`` through ``command`` (one value a sample, in ``mode``'s unit).
+def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: float,
+                   current_mean: bool = False) -> Run:
+    """Run ``plant`` through ``command`` (one value a sample, in ``mode``'s unit);
+    ``current_mean``: the drive also reports its current averaged over each period
+    (column ``current_mean_A``).
 
     Returns
     -------
@@ -37,11 +40,12 @@ def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: floa
         unmeasured truth.
     """
     n = _commands([(mode, command)], 1)
-    out = np.empty((4, n))
+    out = np.empty((5, n))
     truth = np.empty((2, n))
     for k, target in enumerate(np.asarray(command, dtype=float)):
         m = plant.measure(dt_s)
-        out[:, k] = (m.current_A, m.position_rad, m.voltage_V, m.velocity_rad_s)
+        out[:, k] = (m.current_A, m.position_rad, m.voltage_V, m.velocity_rad_s,
+                     m.current_mean_A)
         truth[:, k] = (plant.omega, plant.armature.i)
         plant.command(mode, target)
         plant.advance(dt_s)
@@ -50,6 +54,8 @@ def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: floa
         "current_A": out[0], "position_rad": out[1],
         "voltage_V": out[2], "velocity_rad_s": out[3],
     }
+    if current_mean:
+        columns[CURRENT_MEAN_COLUMN] = out[4]
     if mode == "speed":  # the target held over the period after each sample
         columns["speed_target_rad_s"] = np.asarray(command, dtype=float)
     run = check_columns(columns, "single", "<simulated>")

@@ -55,6 +55,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tell-limit", action="store_true",
                         help="tell the diagnosis each drive's supply and current limit, as a "
                         "motor profile does (stand diagnose --motor)")
+    parser.add_argument("--current-mean", action="store_true",
+                        help="the drives also report their current averaged over each "
+                        "sample period (column current_mean_A), as the diagnosis then "
+                        "takes it")
     parser.add_argument("--no-timing", action="store_true", help="skip the timing case")
     parser.add_argument("--rows", help="write every case as JSON lines to this file, each "
                         "as soon as it is in")
@@ -83,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
                              outside_share=args.outside_share, first=args.first,
                              outside_set=args.outside_set, on_row=keep,
                              classes=tuple(args.classes) if args.classes else None,
-                             tell_limit=args.tell_limit)
+                             tell_limit=args.tell_limit, current_mean=args.current_mean)
         if out:
             out.close()
     wall = time.perf_counter() - start

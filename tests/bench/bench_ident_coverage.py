@@ -116,12 +116,15 @@ def draw_effect(name: str, rng: np.random.Generator, stand: dict[str, Any]) -> d
 #: Columns written to each run file; ``--no-target`` leaves out the speed target (a
 #: stand that does not record what it commanded).
 RUN_COLUMNS = ["time_s", "current_A", "position_rad", "speed_target_rad_s"]
+#: The column ``--current-mean`` adds: the drive's current averaged over each period.
+MEAN_COLUMN = "current_mean_A"
 
 
 def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: int,
              added_inertia: float = 0.0, folder: Path | None = None,
-             target: bool = True) -> Any:
-    """One run of ``stand``, written as CSV (:data:`RUN_COLUMNS`) and read back."""
+             target: bool = True, current_mean: bool = False) -> Any:
+    """One run of ``stand``, written as CSV (:data:`RUN_COLUMNS`, and with
+    ``current_mean`` :data:`MEAN_COLUMN`) and read back."""
     motor = stand["motor"]
     if added_inertia:
         motor = MotorParams(R=motor.R, L=motor.L, Kt=motor.Kt, J=motor.J + added_inertia,
@@ -131,10 +134,10 @@ def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: 
     samples = int(round(RUN_DURATION_S / stand["dt"]))
     command = excitation("prbs", samples, stand["dt"], 0.0, stand["level"], stand["hold"],
                          seed=seed)
-    run = simulate_motor(plant, stand["mode"], command, stand["dt"])
+    run = simulate_motor(plant, stand["mode"], command, stand["dt"], current_mean=current_mean)
     with tempfile.TemporaryDirectory(prefix="ident-bench-") as tmp:
         path = write_run(Path(folder or tmp) / f"run{seed}.csv",
-                         {c: run[c] for c in RUN_COLUMNS
+                         {c: run[c] for c in [*RUN_COLUMNS, MEAN_COLUMN]
                           if c in run and (target or c != "speed_target_rad_s")})
         return read_run(path, "single")
 
@@ -179,10 +182,13 @@ def draw_case(index: int, seed: int, supply: bool = True
     return stand, names, effects, told
 
 
-def run_case(index: int, seed: int, target: bool = True, supply: bool = True) -> dict[str, Any]:
-    """Draw, simulate and identify case ``index``; score Kt/J and its interval."""
+def run_case(index: int, seed: int, target: bool = True, supply: bool = True,
+             current_mean: bool = False) -> dict[str, Any]:
+    """Draw, simulate and identify case ``index``; score Kt/J and its interval
+    (``current_mean``: the run also holds the drive's period-mean current)."""
     stand, names, effects, told = draw_case(index, seed, supply)
-    run = simulate(stand, effects, seed * 100_003 + index, target=target)
+    run = simulate(stand, effects, seed * 100_003 + index, target=target,
+                   current_mean=current_mean)
     truth = stand["motor"].Kt / stand["motor"].J
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"], "loop_hz": stand["loop_hz"]}
@@ -195,7 +201,7 @@ def run_case(index: int, seed: int, target: bool = True, supply: bool = True) ->
     return {**row, "seconds": time.perf_counter() - start,
             "error_rel": r.Kt_over_J / truth - 1.0, "covered": bool(low <= truth <= high),
             "half_width_rel": (high - low) / 2 / truth, "found": r.effects,
-            "estimator": r.estimator, "warnings": r.warnings}
+            "estimator": r.estimator, "warnings": r.warnings, "current_input": r.current_input}
 
 
 #: Seed step between the runs of one stand in ``--replicates``.
@@ -277,7 +283,7 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def run_kt_case(index: int, seed: int, target: bool = True,
-                supply: bool = True) -> dict[str, Any]:
+                supply: bool = True, current_mean: bool = False) -> dict[str, Any]:
     """Torque constant from 5 + 5 repeats on one random stand with one random effect."""
     rng = np.random.default_rng([seed, index, 1])
     stand = draw_stand(rng)
@@ -285,8 +291,10 @@ def run_kt_case(index: int, seed: int, target: bool = True,
     effects = {name: draw_effect(name, rng, stand) for name in names}
     added = stand["motor"].J * _log_uniform(rng, 0.5, 2.0)
     base = seed * 100_003 + 1000 * index
-    free = [simulate(stand, effects, base + k, target=target) for k in range(5)]
-    loaded = [simulate(stand, effects, base + 10 + k, added, target=target) for k in range(5)]
+    free = [simulate(stand, effects, base + k, target=target, current_mean=current_mean)
+            for k in range(5)]
+    loaded = [simulate(stand, effects, base + 10 + k, added, target=target,
+                       current_mean=current_mean) for k in range(5)]
     row: dict[str, Any] = {"index": index, "truth_effects": list(names), "mode": stand["mode"],
                            "dt_s": stand["dt"]}
     told = told_supply(stand, np.random.default_rng([seed, index, 3])) if supply else None
@@ -365,6 +373,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="leave the speed target out of the run files")
     parser.add_argument("--no-supply", action="store_true",
                         help="tell identify nothing of the drive's supply and the motor")
+    parser.add_argument("--current-mean", action="store_true",
+                        help="the drives also report their current averaged over each "
+                        "sample period (column current_mean_A)")
     parser.add_argument("--rows", type=Path, help="write every case as JSON lines here")
     parser.add_argument("--supply-cost", action="store_true",
                         help="CPU seconds of identify on a 20 s, 1 kHz run that saturates "
@@ -384,7 +395,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.kt:
         jobs: list[tuple[Any, ...]] = [
-            (k, args.seed, not args.no_target, not args.no_supply) for k in range(args.stands)
+            (k, args.seed, not args.no_target, not args.no_supply, args.current_mean)
+            for k in range(args.stands)
             if args.mode is None or kt_mode(k, args.seed) == args.mode]
         rows = _pool_map(run_kt_case, jobs, args.workers)
         ok = [r for r in rows if "error_rel" in r]
@@ -404,7 +416,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = _pool_map(run_replicates, jobs, args.workers)
         summary = summarize_replicates(rows)
     else:
-        jobs = [(k, args.seed, not args.no_target, not args.no_supply) for k in range(args.cases)
+        jobs = [(k, args.seed, not args.no_target, not args.no_supply, args.current_mean)
+                for k in range(args.cases)
                 if args.mode is None or case_mode(k, args.seed) == args.mode]
         rows = _pool_map(run_case, jobs, args.workers)
         summary = summarize(rows)

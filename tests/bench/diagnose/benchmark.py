@@ -36,7 +36,7 @@ from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
-from stand.runfile import Run, read_run, write_run
+from stand.runfile import CURRENT_MEAN_COLUMN, Run, read_run, write_run
 from tests.bench.diagnose.oracle import ENGINE_TESTS, resolved_truth, visibility, visible_against_twin
 from tests.bench.diagnose.outside import HELD_OUT, OUTSIDE, draw_outside, outside_torque
 from tests.bench.diagnose.snr import added_snr, effect_snr
@@ -274,13 +274,17 @@ DRAWS: dict[str, Callable[[np.random.Generator, Case, float], dict[str, float]]]
 
 
 def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S,
-                  effects: dict[str, dict[str, float]] | None = None) -> dict[str, np.ndarray]:
+                  effects: dict[str, dict[str, float]] | None = None,
+                  current_mean: bool = False) -> dict[str, np.ndarray]:
     """Columns of the TRAIN (``which=0``) or HOLDOUT (1) run of ``case``; ``effects``
     replaces its effects and drops its outside effect (a twin run: the same command,
-    sensors and noise seed)."""
+    sensors and noise seed); ``current_mean``: the drive also reports its current
+    averaged over each period (``current_mean_A``; the other columns are the same
+    either way)."""
     run = _simulate(case, which, duration_s, effects)
     # a speed-mode run holds its target, as the stand controller records it
-    names = ("time_s", "current_A", "position_rad", "voltage_V", TARGET_COLUMN)
+    names = ("time_s", "current_A", "position_rad", "voltage_V", TARGET_COLUMN,
+             *((CURRENT_MEAN_COLUMN,) if current_mean else ()))
     return {k: run[k] for k in names if k in run}
 
 
@@ -341,18 +345,21 @@ def _simulated(case: Case, which: int, duration_s: float,
         hold = max(1, int(round(hold * _log_uniform(rng, 0.6, 1.6))))
         amplitude *= rng.uniform(0.7, 1.3)
     command = excitation(case.kind, samples, case.dt_s, case.level, amplitude, hold, seed=seed)
-    return simulate_motor(plant, case.mode, command, case.dt_s)
+    return simulate_motor(plant, case.mode, command, case.dt_s, current_mean=True)
 
 
 def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
              min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
-             outside_set: str = "tuning", tell_limit: bool = False) -> dict[str, Any]:
+             outside_set: str = "tuning", tell_limit: bool = False,
+             current_mean: bool = False) -> dict[str, Any]:
     """Draw, simulate, write, read back and diagnose one case blind; then score it.
     ``tell_limit``: the diagnosis is told the drive's supply and current limit, as a
-    motor profile tells them (``stand diagnose --motor``)."""
+    motor profile tells them (``stand diagnose --motor``); ``current_mean``: the runs
+    also hold the drive's current averaged over each period (:func:`simulate_case`)."""
     case = draw_case(index, seed, min_snr, duration_s, outside_share, outside_set)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
-        paths = [write_run(Path(folder) / f"{name}.csv", simulate_case(case, k, duration_s))
+        paths = [write_run(Path(folder) / f"{name}.csv",
+                           simulate_case(case, k, duration_s, current_mean=current_mean))
                  for k, name in enumerate(("train", "holdout"))]
         train, holdout = (read_run(p, "single") for p in paths)
         start = time.perf_counter()
@@ -363,7 +370,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         elapsed = time.perf_counter() - start
         oracle = (visibility(train, holdout, case.motor, case.effects)
                   if case.effects else None)
-        each = _visible_each(case, (train, holdout), Path(folder), duration_s)
+        each = _visible_each(case, (train, holdout), Path(folder), duration_s, current_mean)
     predicted = result.verdict.split("+")
     named = [p for p in predicted if p != UNEXPLAINED] or predicted
     gaps = {e.effect: e for e in result.effects}
@@ -393,12 +400,12 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         # how the verdict was built: each effect's test as an addition to those before it
         "steps": [{"effect": s.effect, "gap_before": s.gap_before_percent, "gap": s.gap_percent,
                    "p": s.p_value} for s in result.steps],
-        "notes": result.notes,
+        "notes": result.notes, "current_mean": current_mean,
     }
 
 
-def _visible_each(case: Case, runs: tuple[Run, Run], folder: Path, duration_s: float
-                  ) -> dict[str, bool]:
+def _visible_each(case: Case, runs: tuple[Run, Run], folder: Path, duration_s: float,
+                  current_mean: bool = False) -> dict[str, bool]:
     """Whether each planted effect of a pair, or the outside effect, shows against the
     case's twin runs without it (:func:`tests.bench.diagnose.oracle.visible_against_twin`):
     alone or first at the first step's level, beside another planted effect at the
@@ -410,7 +417,8 @@ def _visible_each(case: Case, runs: tuple[Run, Run], folder: Path, duration_s: f
     for name in planted:
         others = {k: v for k, v in case.effects.items() if k != name}
         twin = tuple(read_run(write_run(folder / f"twin_{name}_{k}.csv",
-                                        simulate_case(case, k, duration_s, others)), "single")
+                                        simulate_case(case, k, duration_s, others,
+                                                      current_mean)), "single")
                      for k in (0, 1))
         tests = ENGINE_TESTS - 1 if len(planted) > 1 else ENGINE_TESTS
         out[name] = visible_against_twin(runs, (twin[0], twin[1]), case.motor, others, tests)
@@ -560,7 +568,8 @@ def _supply(case: Case) -> DriveSupply:
                        case.drive.current_limit_A)
 
 
-def _run_case_args(args: tuple[int, int, float, float, float, str, bool]) -> dict[str, Any]:
+def _run_case_args(args: tuple[int, int, float, float, float, str, bool, bool]
+                   ) -> dict[str, Any]:
     return run_case(*args)
 
 
@@ -569,12 +578,14 @@ def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = R
                   first: int = 0, outside_set: str = "tuning",
                   on_row: Callable[[dict[str, Any]], None] | None = None,
                   classes: tuple[str, ...] | None = None,
-                  tell_limit: bool = False) -> list[dict[str, Any]]:
+                  tell_limit: bool = False, current_mean: bool = False
+                  ) -> list[dict[str, Any]]:
     """Run the blind cases ``first`` .. ``first + cases - 1`` with ``workers`` processes;
     with ``classes``, only those of these classes (:func:`case_class`). Rows in case
-    order, each also handed to ``on_row`` as soon as it is in. ``tell_limit``:
-    :func:`run_case`'s."""
-    jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set, tell_limit)
+    order, each also handed to ``on_row`` as soon as it is in. ``tell_limit``,
+    ``current_mean``: :func:`run_case`'s."""
+    jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set, tell_limit,
+             current_mean)
             for index in range(first, first + cases)
             if classes is None or case_class(index, seed, outside_share) in classes]
     rows = []
