@@ -117,9 +117,10 @@ class IdentifyResult(JsonResult):
     source : str
         The run identified (its file name).
     current_input : str
-        The current the equation-error model is driven by: ``samples`` (the sampled current, its timing
-        within the period fitted), ``current_mean_A`` (the drive's own mean over each
-        period) or ``speed_law`` (the PI speed law's current over each period).
+        The current the equation-error model is driven by: ``samples`` (the sampled
+        current, its timing within the period fitted), ``current_mean_A`` (the drive's
+        own mean over each period) or ``speed_law`` (the PI speed law's current over
+        each period).
     """
 
     A: list[list[float]]
@@ -328,15 +329,25 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
             fitter.timing = False
         chosen = select(fitter, wanted, input_weight=known_timing)
         fits.append((float(chosen.estimate.cv_sse.sum()), source, design, fitter, chosen))
-    _, source, design, fitter, chosen = min(fits, key=lambda fit: fit[0])
+    fits.sort(key=lambda fit: fit[0])
+    _, source, design, fitter, chosen = fits[0]
     from_loop = source == "speed_law"
-    if source == CURRENT_MEAN_COLUMN:
-        loop = None  # the drive measured the current over each period: nothing to rebuild
     spec, est = chosen.spec, chosen.estimate
     if estimator == "auto":
         estimator, spec, est = _pick_estimator(fitter, spec, est)
     spread = model_variance(fitter, chosen)
     est = est.with_variance("current", spread)
+    if source == CURRENT_MEAN_COLUMN:
+        # the period's mean is not the current's shape within it (a kick early in the
+        # period moves the angle more than its mean says), which no column here
+        # models: where the next-best input gives another Kt/J, Kt/J is known no better
+        # than the two agree; under a speed loop at most by what the samples miss of
+        # its kicks (the shape's error is a part of that miss)
+        shape = model_disagreement(fits[1][4].estimate, est, "current")
+        if loop is not None:
+            shape = min(shape, missed_kick_variance(loop, est, run.dt_s) or shape)
+        est = est.with_variance("current", shape)
+        loop = None  # the drive measured the current over each period: nothing to rebuild
     refined = _closed_loop(run, loop, spec, est, sigma, supply, warnings) if loop is not None else None
     if loop is not None and refined is not None and refined.holds:
         # the effects are the equation error's choice: their models' spread stays
