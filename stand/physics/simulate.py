@@ -35,7 +35,8 @@ def simulate_motor(plant: MotorPlant, mode: str, command: np.ndarray, dt_s: floa
     -------
     Run
         Single-motor run: ``time_s``, ``current_A``, ``position_rad``, ``voltage_V``,
-        ``velocity_rad_s`` (and ``speed_target_rad_s`` in speed mode);
+        ``velocity_rad_s`` (and ``speed_target_rad_s`` in speed mode, and
+        ``current_mean_A`` with ``current_mean``);
         ``meta['true_velocity_rad_s']`` and ``meta['true_current_A']`` hold the
         unmeasured truth.
     """

@@ -55,7 +55,7 @@ from stand.physics.effects import Effects
 from stand.physics.parts import DriveParams, MotorParams, SensorParams
 from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
-from stand.runfile import read_run, write_run
+from stand.runfile import CURRENT_MEAN_COLUMN, read_run, write_run
 
 #: Effect sets cycled over the cases: none, each alone, each pair.
 EFFECT_SETS: list[tuple[str, ...]] = [(), *((e,) for e in IDENT_EFFECTS),
@@ -116,15 +116,14 @@ def draw_effect(name: str, rng: np.random.Generator, stand: dict[str, Any]) -> d
 #: Columns written to each run file; ``--no-target`` leaves out the speed target (a
 #: stand that does not record what it commanded).
 RUN_COLUMNS = ["time_s", "current_A", "position_rad", "speed_target_rad_s"]
-#: The column ``--current-mean`` adds: the drive's current averaged over each period.
-MEAN_COLUMN = "current_mean_A"
 
 
 def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: int,
              added_inertia: float = 0.0, folder: Path | None = None,
              target: bool = True, current_mean: bool = False) -> Any:
     """One run of ``stand``, written as CSV (:data:`RUN_COLUMNS`, and with
-    ``current_mean`` :data:`MEAN_COLUMN`) and read back."""
+    ``current_mean`` the drive's current averaged over each period,
+    :data:`~stand.runfile.CURRENT_MEAN_COLUMN`) and read back."""
     motor = stand["motor"]
     if added_inertia:
         motor = MotorParams(R=motor.R, L=motor.L, Kt=motor.Kt, J=motor.J + added_inertia,
@@ -137,7 +136,7 @@ def simulate(stand: dict[str, Any], effects: dict[str, dict[str, float]], seed: 
     run = simulate_motor(plant, stand["mode"], command, stand["dt"], current_mean=current_mean)
     with tempfile.TemporaryDirectory(prefix="ident-bench-") as tmp:
         path = write_run(Path(folder or tmp) / f"run{seed}.csv",
-                         {c: run[c] for c in [*RUN_COLUMNS, MEAN_COLUMN]
+                         {c: run[c] for c in [*RUN_COLUMNS, CURRENT_MEAN_COLUMN]
                           if c in run and (target or c != "speed_target_rad_s")})
         return read_run(path, "single")
 

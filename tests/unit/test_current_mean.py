@@ -1,6 +1,7 @@
 """The drive's current averaged over each sample period (``current_mean_A``): recorded by
-the simulated drive, kept by the run files, and taken by the diagnosis where it
-simulates TRAIN better than the samples' reconstructions."""
+the simulated drive, kept by run files and imports, driving the diagnosis unless the
+samples' reconstruction simulates TRAIN significantly better, and driving the
+identification where its held-out error is the smallest."""
 
 from __future__ import annotations
 
