@@ -35,7 +35,13 @@ from stand.diagnosis import input_weight, kicks, supply_limit
 from stand.diagnosis.current_noise import current_noise
 from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
 from stand.diagnosis.loop_input import loop_inputs
-from stand.diagnosis.model import FittedModel, ModelSpec, equation_residual, lag_share
+from stand.diagnosis.model import (
+    FittedModel,
+    ModelSpec,
+    equation_residual,
+    lag_share,
+    period_mean_current,
+)
 from stand.diagnosis.noise import (
     UNEXPLAINED_FACTOR,
     beyond_approximation,
@@ -49,7 +55,7 @@ from stand.diagnosis.notes import aliases, limits
 from stand.diagnosis.report import Diagnosis, EffectScore, Traces
 from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
-from stand.diagnosis.signals import Signals, period_mean_current, prepare
+from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import PairedTest, paired_improvement
 from stand.diagnosis.structure import (
     AFTER_NAMED_NUISANCE,

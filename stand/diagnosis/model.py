@@ -28,6 +28,7 @@ from stand.diagnosis.dry_friction import period_mean
 from stand.diagnosis.signals import Signals, near_rest
 from stand.errors import InputError, NotExcitedError
 from stand.ident.qmatrix import QSums, solve
+from stand.runfile import CURRENT_MEAN_COLUMN, Run
 
 #: Samples dropped at each end of a run in the fit (filter and shift transients).
 EDGE_SAMPLES = 50
@@ -200,6 +201,20 @@ def interval_current(current: np.ndarray, weight: float) -> np.ndarray:
     """Current over the period after each sample, ``(1 − w)·i[n] + w·i[n + 1]``."""
     following = np.concatenate([current[1:], current[-1:]])
     return (1.0 - weight) * current + weight * following
+
+
+def period_mean_current(run: Run) -> np.ndarray:
+    """The current over the period after each sample (a model's input at
+    :data:`~stand.diagnosis.input_weight.PERIOD_MEAN_WEIGHT`) from the drive's current
+    averaged over the period that ends at each sample (``current_mean_A``): the next
+    row's (:func:`interval_current` at weight 1), the last period's repeated at the end.
+
+    Raises
+    ------
+    RunFileError
+        The run has no ``current_mean_A``.
+    """
+    return interval_current(np.asarray(run[CURRENT_MEAN_COLUMN], dtype=float), 1.0)
 
 
 #: Weights of the four sample periods around a sample (from two before to two after)
@@ -715,6 +730,7 @@ def nominal() -> ModelSpec:
 __all__ = ["KICK_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
            "fit", "fit_residual_batch", "interval_current", "kick_basis", "lag_share",
            "lag_slope", "nominal", "offset_ripple",
-           "period_current", "period_shape", "supply_basis", "supply_classes", "supply_within_period",
+           "period_current", "period_mean_current", "period_shape", "supply_basis",
+           "supply_classes", "supply_within_period",
            "periodic_column", "periodic_mean",
            "regressors", "ripple_on_offset", "shifted", "velocity_resolution", "velocity_sign"]

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from stand.errors import InputError
-from stand.runfile import CURRENT_MEAN_COLUMN, Run
+from stand.runfile import Run
 
 #: Cut-off of the zero-phase filter as a fraction of the Nyquist frequency.
 FILTER_FRACTION_OF_NYQUIST = 0.2
@@ -274,20 +274,6 @@ def prepare(run: Run) -> Signals:
                    omega_meas=central_difference(theta, dt), theta_f=theta_f,
                    omega_f=omega_f, accel_f=accel_f, quant_rad=quantization_step(theta),
                    top_speed=float(np.quantile(np.abs(omega_f), 0.95)), source=run.source)
-
-
-def period_mean_current(run: Run) -> np.ndarray:
-    """The current over the period after each sample (a model's input at weight 0) from
-    the drive's current averaged over the period that ends at each sample
-    (``current_mean_A``): the next row's, the last period's repeated at the end.
-
-    Raises
-    ------
-    RunFileError
-        The run has no ``current_mean_A``.
-    """
-    mean = np.asarray(run[CURRENT_MEAN_COLUMN], dtype=float)
-    return np.concatenate([mean[1:], mean[-1:]])
 
 
 def correlation_time(x: np.ndarray) -> float:

@@ -22,13 +22,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
-from stand.diagnosis.model import ModelSpec
-from stand.diagnosis.signals import (
-    MIN_DIAGNOSE_SAMPLES,
-    period_mean_current,
-    prepare,
-    quantization_step,
-)
+from stand.diagnosis.model import ModelSpec, period_mean_current
+from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare, quantization_step
 from stand.errors import InputError, NotExcitedError
 from stand.ident.checks import effect_params, rest_warning, run_warnings
 from stand.ident.closed_loop import ClosedLoopFit, fit_closed_loop

@@ -87,8 +87,8 @@ class Sensors:
         self.step_rad = 2 * math.pi / counts if counts else 0.0
         self.offset_A = effects.current_offset.i0 if effects.current_offset else 0.0
         delay = effects.delay.k if effects.delay else 0
-        self.current_history: deque[float] = deque(maxlen=delay + 1)
-        self.mean_history: deque[float] = deque(maxlen=delay + 1)
+        #: (sampled current, period mean) of the last ``delay + 1`` samples.
+        self.current_history: deque[tuple[float, float]] = deque(maxlen=delay + 1)
         # the period mean's noise from its own stream: the sampled current's draws, and
         # so every run simulated before the period mean was recorded, stay as they were
         self.mean_rng = rng.spawn(1)[0]
@@ -102,10 +102,9 @@ class Sensors:
         position = theta
         if self.step_rad:
             position = math.floor(theta / self.step_rad) * self.step_rad
-        self.current_history.append(current)
-        measured_i = self.current_history[0] + self.offset_A  # k samples ago
-        self.mean_history.append(current_mean)
-        measured_mean = self.mean_history[0] + self.offset_A
+        self.current_history.append((current, current_mean))
+        late_i, late_mean = self.current_history[0]  # k samples ago
+        measured_i, measured_mean = late_i + self.offset_A, late_mean + self.offset_A
         if p.current_noise_A:
             measured_i += p.current_noise_A * self.rng.standard_normal()
             # as noisy as one sample: a drive's average of its current loop's samples

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from stand.diagnosis import diagnose
+from stand.diagnosis.model import period_mean_current
 from stand.diagnosis.noise import UNEXPLAINED_FACTOR
-from stand.diagnosis.signals import period_mean_current
 from stand.errors import RunFileError
 from stand.importer import map_columns
 from stand.physics.effects import Effects
