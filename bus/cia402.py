@@ -42,6 +42,9 @@ VELOCITY_ACTUAL = 0x606C
 TORQUE_ACTUAL = 0x6077
 CURRENT_ACTUAL = 0x6078
 VOLTAGE_ACTUAL = 0x2001
+#: Current actual averaged over the communication cycle period that ends at the SYNC
+#: (manufacturer-specific, the simulated drive's; per mille of 0x6075 like 0x6078).
+CURRENT_MEAN = 0x2002
 ERROR_CODE = 0x603F
 QUICK_STOP_OPTION = 0x605A
 MAX_CURRENT = 0x6073

@@ -73,13 +73,18 @@ class DriveConfig:
             raise InputError(f"drive mode must be one of {', '.join(DRIVE_MODES)}, not {self.mode!r}")
 
 
-def tpdo_objects(od: canopen.ObjectDictionary, simulated: bool = True) -> tuple[list[int], list[int]]:
-    """The objects the master maps into TPDO1 and TPDO2 of a drive with object dictionary
-    ``od``: position and current actual; velocity actual (and voltage actual when the
-    drive is the simulated one and ``od`` has 0x2001, an object only the simulation has)."""
+def tpdo_objects(od: canopen.ObjectDictionary, simulated: bool = True) -> list[list[int]]:
+    """The objects the master maps into the TPDOs of a drive with object dictionary
+    ``od``: TPDO1 position and current actual; TPDO2 velocity actual (and voltage actual
+    when the drive is the simulated one and ``od`` has 0x2001, an object only the
+    simulation has); on the simulated drive whose ``od`` offers it, TPDO3 the current
+    averaged over the communication cycle (0x2002: column ``current_mean_A``)."""
     voltage = simulated and cia402.VOLTAGE_ACTUAL in od
     second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if voltage else [])
-    return [cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL], second
+    objects = [[cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL], second]
+    if simulated and cia402.CURRENT_MEAN in od and TPDO_COMMUNICATION + 2 in od:
+        objects.append([cia402.CURRENT_MEAN])
+    return objects
 
 
 class Drive:
@@ -222,17 +227,20 @@ class Drive:
             self.write(comm, 1, cob_id | COB_ID_INVALID)
 
     def configure_pdos(self) -> None:
-        """Map RPDO1 (controlword + target) and TPDO1/TPDO2 (actual values) over SDO."""
+        """Map RPDO1 (controlword + target) and the TPDOs of :func:`tpdo_objects` (actual
+        values) over SDO."""
         target = cia402.TARGET_OBJECT[self.config.mode][0]
         self.rpdo_cob_id, self.rpdo = self._map(RPDO_COMMUNICATION, RPDO_MAPPING,
                                                 [cia402.CONTROLWORD, target])
         self._unmap(RPDO_COMMUNICATION + 1)
-        first, second = tpdo_objects(self.od, self.simulated)
+        first, second, *rest = tpdo_objects(self.od, self.simulated)
         self.tpdos = [self._map(TPDO_COMMUNICATION, TPDO_MAPPING, first)]
         if self.config.velocity:
             self.tpdos.append(self._map(TPDO_COMMUNICATION + 1, TPDO_MAPPING + 1, second))
         else:
             self._unmap(TPDO_COMMUNICATION + 1)
+        for n, objects in enumerate(rest, start=2):
+            self.tpdos.append(self._map(TPDO_COMMUNICATION + n, TPDO_MAPPING + n, objects))
 
     def rpdo_data(self, controlword: int, target_SI: float) -> bytes:
         """RPDO1 data for ``controlword`` and a target in SI units (rad/s, A or V)."""

@@ -52,8 +52,8 @@ from stand.physics.plant import Measurement
 
 log = logging.getLogger(__name__)
 
-#: Number of RPDOs and TPDOs the node offers.
-PDO_COUNT = 2
+#: Most PDOs of one direction CiA 301 predefines (the node offers those its EDS has).
+PDO_COUNT = 4
 #: Over-current trips when the measured current exceeds this multiple of 0x6073.
 OVER_CURRENT_MARGIN = 1.0
 #: A speed error beyond the following window for this long is a fault, s.
@@ -228,6 +228,8 @@ class SimDriveNode:
             return int(round(m.current_A / s.amp_per_unit))
         if index == cia402.VOLTAGE_ACTUAL:
             return int(round(m.voltage_V / s.voltage_unit_V))
+        if index == cia402.CURRENT_MEAN:
+            return int(round(m.current_mean_A / s.amp_per_unit))
         if index == cia402.MODES_DISPLAY:
             return cia402.MODES[self.mode] if self.mode else cia402.MODE_NONE
         if index == cia402.ERROR_CODE:
@@ -294,6 +296,8 @@ class SimDriveNode:
         """(COB-ID, layout, transmission type) of every valid PDO of ``comm``/``mapping``."""
         out = []
         for n in range(PDO_COUNT):
+            if comm + n not in self.od:
+                break
             cob_id = struct.unpack("<I", self.node.get_data(comm + n, 1))[0]
             count = self.node.get_data(mapping + n, 0)[0]
             if cob_id & COB_ID_INVALID or count == 0:

@@ -31,6 +31,7 @@ from stand.errors import BusTimeout
 #: Process data objects the sampler understands, and the field each fills.
 FIELDS = {cia402.POSITION_ACTUAL: "position_rad", cia402.CURRENT_ACTUAL: "current_A",
           cia402.VELOCITY_ACTUAL: "velocity_rad_s", cia402.VOLTAGE_ACTUAL: "voltage_V",
+          cia402.CURRENT_MEAN: "current_mean_A",
           cia402.STATUSWORD: "statusword"}
 #: RPDO target objects whose value a window keeps, and the field each fills: the target
 #: velocity of cyclic synchronous velocity mode, held from its SYNC to the next.
@@ -283,7 +284,7 @@ class Sampler:
             for name, values in raw.items():
                 if name == "position_rad":
                     columns[name] = _unwrap_int32(values) * s.rad_per_count
-                elif name == "current_A":
+                elif name in ("current_A", "current_mean_A"):
                     columns[name] = values * s.amp_per_unit
                 elif name in ("velocity_rad_s", "speed_target_rad_s"):
                     columns[name] = values * s.velocity_unit_rad_s

@@ -48,7 +48,7 @@ from stand.profiles import (
     resolve,
     validate,
 )
-from stand.runfile import check_columns, format_run, write_run
+from stand.runfile import CURRENT_MEAN_COLUMN, check_columns, format_run, write_run
 
 log = logging.getLogger(__name__)
 
@@ -205,7 +205,9 @@ def run_columns(kind: str, samples: Samples, start: int = 0,
     """Run-file columns (CONTRACT §1) of the bus samples ``start:stop``, gaps left out.
 
     A single-motor run in speed mode has ``speed_target_rad_s``: the target velocity the
-    drive was sent for each sample's period, as it went over the bus."""
+    drive was sent for each sample's period, as it went over the bus; ``current_mean_A``
+    where the drive reports its current averaged over each period (the simulated drive's
+    0x2002)."""
     stop = samples.count if stop is None else stop
     rows = slice(start, stop)
     drives = samples.drives
@@ -220,7 +222,8 @@ def run_columns(kind: str, samples: Samples, start: int = 0,
 
     names = {"single": [("current_A", "current_A"), ("position_rad", "position_rad"),
                         ("velocity_rad_s", "velocity_rad_s"), ("voltage_V", "voltage_V"),
-                        ("speed_target_rad_s", "speed_target_rad_s")],
+                        ("speed_target_rad_s", "speed_target_rad_s"),
+                        (CURRENT_MEAN_COLUMN, "current_mean_A")],
              "step": [("voltage_V", "voltage_V"), ("velocity_rad_s", "velocity_rad_s"),
                       ("current_A", "current_A"), ("position_rad", "position_rad")]}
     if kind == "reducer":

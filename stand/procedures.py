@@ -260,8 +260,11 @@ def efficiency_procedure(stand: StandProfile, motor_in: MotorProfile, load_curre
 
 
 def simulate_procedure(procedure: Procedure, profile: MotorProfile,
-                       effects: Effects | None = None, seed: int | None = None) -> Run:
-    """Run a single-motor procedure on the simulated motor of ``profile``."""
+                       effects: Effects | None = None, seed: int | None = None,
+                       current_mean: bool = False) -> Run:
+    """Run a single-motor procedure on the simulated motor of ``profile``;
+    ``current_mean``: also the column ``current_mean_A``, as the simulated drive on the
+    bus reports it (0x2002)."""
     if procedure.kind != "single":
         raise InputError(f"procedure {procedure.name} is a {procedure.kind} run; "
                          "use simulate_stand_procedure")
@@ -270,7 +273,8 @@ def simulate_procedure(procedure: Procedure, profile: MotorProfile,
                        profile.sensor_params(),
                        profile.effect_set() if effects is None else effects,
                        added_inertia=procedure.added_inertia_kgm2, seed=seed)
-    return simulate_motor(plant, port.mode, port.values, procedure.sample_period_s)
+    return simulate_motor(plant, port.mode, port.values, procedure.sample_period_s,
+                          current_mean=current_mean)
 
 
 def simulate_stand_procedure(procedure: Procedure, stand: StandProfile, motor_in: MotorProfile,

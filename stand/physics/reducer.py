@@ -69,6 +69,8 @@ class ReducerPlant:
         self.k, self.c = contact_constants(motor_in.J * n * n, motor_out.J, reducer.stiffness)
         self.theta = [0.0, 0.0]
         self.omega = [0.0, 0.0]
+        #: Each armature's current averaged over the last :meth:`advance`, A.
+        self.period_current = [0.0, 0.0]
         self.time_s = 0.0
 
     def command(self, mode: str, target: float, port: int = 0) -> None:
@@ -78,7 +80,8 @@ class ReducerPlant:
     def measure(self, dt_s: float, port: int = 0) -> Measurement:
         """Read the sensors of the motor on ``port``."""
         arm = self.armatures[port]
-        return self.sensors[port].read(self.theta[port], self.omega[port], arm.i, arm.v, dt_s)
+        return self.sensors[port].read(self.theta[port], self.omega[port], arm.i, arm.v, dt_s,
+                                       self.period_current[port])
 
     def advance(self, dt_s: float) -> None:
         """Advance the physics by ``dt_s`` seconds."""
@@ -94,10 +97,13 @@ class ReducerPlant:
         th_in, th_out = self.theta
         w_in, w_out = self.omega
         half = 0.5 * h
+        charge_in = charge_out = 0.0
         for _ in range(steps):  # position Verlet: forces at mid-step (see plant.py)
             tm_in, tm_out = th_in + half * w_in, th_out + half * w_out
             arm_in.step(h, w_in)
             arm_out.step(h, w_out)
+            charge_in += arm_in.i_mean
+            charge_out += arm_out.i_mean
             twist = tm_in / n - tm_out
             rate = w_in / n - w_out
             contact = 0.0
@@ -122,4 +128,5 @@ class ReducerPlant:
             w_in, w_out = new_in, new_out
         self.theta = [th_in, th_out]
         self.omega = [w_in, w_out]
+        self.period_current = [charge_in / steps, charge_out / steps]
         self.time_s += dt_s

@@ -109,7 +109,9 @@ def test_lost_pdos_are_counted_per_drive_and_never_filled(can_config: BusConfig,
         bus.sim.nodes[0].pdo_drop_every = drop_every
         record = StandController(bus).run_experiment(short, tmp_path).runs[0]
         status = bus.status()
-    sent = 2 * record.expected_samples  # two TPDOs a SYNC
+        tpdos = len(bus.master.drives[0].tpdos)
+    assert tpdos == 3  # position and current; velocity and voltage; the period-mean current
+    sent = tpdos * record.expected_samples
     assert record.lost == {1: sent // drop_every, 2: 0}
     assert not record.complete
     assert status["nodes"][0]["lost"] == sent // drop_every

@@ -20,7 +20,7 @@ from stand.ident.efficiency import efficiency
 from stand.ident.identify import identify_run
 from stand.procedures import simulate_procedure, simulate_stand_procedure
 from stand.profiles import load_motor, load_stand
-from stand.runfile import read_run
+from stand.runfile import CURRENT_MEAN_COLUMN, read_run
 
 #: Heartbeat period of tests that do not test heartbeats: long enough that a one-CPU
 #: User-Mode Linux on a loaded host never starves a heartbeat into a false alarm, s.
@@ -56,7 +56,8 @@ def test_stand_run_identifies_like_direct_simulation(can_config: BusConfig, tmp_
     experiment = ExperimentProfile(name="x", procedure="no_load", motor="crouzet_82800502",
                                    repeats=1, duration_s=4.0, period_s=0.001)
     (procedure, _), = plan(experiment)
-    direct = simulate_procedure(procedure, load_motor("crouzet_82800502"), seed=SEED)
+    direct = simulate_procedure(procedure, load_motor("crouzet_82800502"), seed=SEED,
+                                current_mean=True)
     over_bus = read_run(run["path"])
     # Seed 000's model: a smooth function of the data. With effects chosen by the data
     # (the default), a count or a milliampere may tip a test the other way on this
@@ -66,6 +67,17 @@ def test_stand_run_identifies_like_direct_simulation(can_config: BusConfig, tmp_
         assert getattr(b, name) == pytest.approx(getattr(a, name), rel=SAME_PARAMETERS_RTOL), name
     assert np.max(np.abs(over_bus["position_rad"] - direct["position_rad"])) <= ONE_COUNT_RAD * 1.01
     assert np.median(np.abs(over_bus["current_A"] - direct["current_A"])) <= CURRENT_QUANTUM_A
+    # the simulated drive's period mean (0x2002) travels in TPDO3, in the same unit
+    assert (np.median(np.abs(over_bus[CURRENT_MEAN_COLUMN] - direct[CURRENT_MEAN_COLUMN]))
+            <= CURRENT_QUANTUM_A)
+    # driven by it, the shipped no-load experiment's speed loop gives Kt/J within 1 %,
+    # and the interval holds the simulated motor's (the samples alone miss both, README)
+    motor = load_motor("crouzet_82800502").motor
+    truth = motor.Kt / motor.J
+    result = identify_run(over_bus)
+    assert result.current_input == CURRENT_MEAN_COLUMN
+    assert result.Kt_over_J == pytest.approx(truth, rel=0.01)
+    assert result.Kt_over_J_ci95[0] <= truth <= result.Kt_over_J_ci95[1]
 
 
 def test_two_drive_efficiency_run_matches_direct_simulation(can_config: BusConfig,

@@ -16,8 +16,9 @@ from stand.diagnosis.noise import UNEXPLAINED_FACTOR
 from stand.errors import RunFileError
 from stand.importer import map_columns
 from stand.physics.effects import Effects
-from stand.physics.parts import DriveParams, MotorParams, SensorParams
+from stand.physics.parts import DriveParams, MotorParams, ReducerParams, SensorParams
 from stand.physics.plant import MotorPlant
+from stand.physics.reducer import ReducerPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import CURRENT_MEAN_COLUMN, Run, parse_run, read_run, write_run
 from tests.bench.bench_ident_coverage import run_case
@@ -46,6 +47,24 @@ def test_the_drive_reports_the_mean_of_its_current_over_the_period_that_ends() -
     np.testing.assert_allclose(run[CURRENT_MEAN_COLUMN][:3], [0.0, first, second], atol=1e-6)
     # the sample is the current at the instant: the mean lags it
     assert run["current_A"][1] > run[CURRENT_MEAN_COLUMN][1] + 0.1
+
+
+def test_each_drive_of_the_reducer_stand_reports_its_own_period_mean() -> None:
+    # the same first-order step as above on the output drive of a two-motor stand (its
+    # input drive holds its shaft at rest): the drive on the bus reads this (0x2002)
+    reducer = ReducerParams(ratio=10.0, efficiency=0.8)
+    plant = ReducerPlant(MOTOR, MOTOR, reducer, DriveParams(mode="current"),
+                         DriveParams(mode="current", supply_V=48.0, current_tau_s=4e-4),
+                         SensorParams(encoder_lines=2000), seed=5)
+    means = []
+    for _ in range(3):
+        means.append(plant.measure(1e-3, 1).current_mean_A)
+        plant.command("current", 1.0, 1)
+        plant.advance(1e-3)
+    decay = math.exp(-1e-3 / 4e-4)
+    np.testing.assert_allclose(means, [0.0, 1 - 0.4 * (1 - decay), 1 - 0.4 * decay * (1 - decay)],
+                               atol=1e-6)
+    assert plant.measure(1e-3, 0).current_mean_A == 0.0  # the input drive's: no current
 
 
 def test_recording_the_mean_leaves_the_other_columns_and_their_noise_alone() -> None:

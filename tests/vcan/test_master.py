@@ -32,7 +32,7 @@ PERIOD_S = 0.015
 TARGET_RAD_S = 50.0
 RUN_SAMPLES = 200
 #: Predefined connection set (CiA 301 §7.3.5) for node 1.
-TPDO1, TPDO2, RPDO1 = 0x180 + NODE, 0x280 + NODE, 0x200 + NODE
+TPDO1, TPDO2, TPDO3, RPDO1 = 0x180 + NODE, 0x280 + NODE, 0x380 + NODE, 0x200 + NODE
 CW_ENABLE_OPERATION = 0x000F
 #: Producer heartbeat period the master asks for, s. Longer than the master's default: the
 #: guest has one CPU shared by the master, the drives' process, candump and cangen (and the
@@ -212,7 +212,7 @@ def test_setup_follows_cia301(master: Master) -> None:
     pdos = cia301.pdo_configs(transfers)
     od = load_od(DEFAULT_EDS, NODE)
     for comm, cob_id in ((cia301.RPDO_COMM, RPDO1), (cia301.TPDO_COMM, TPDO1),
-                         (cia301.TPDO_COMM + 1, TPDO2)):
+                         (cia301.TPDO_COMM + 1, TPDO2), (cia301.TPDO_COMM + 2, TPDO3)):
         assert comm in pdos, f"PDO 0x{comm:04X} not configured and enabled"
         pdo = pdos[comm]
         assert pdo.cob_id == cob_id, (
@@ -225,6 +225,7 @@ def test_setup_follows_cia301(master: Master) -> None:
             assert len(var) == bits, f"0x{index:04X} mapped with {bits} bits, the EDS says {len(var)}"
             assert var.pdo_mappable, f"0x{index:04X} is not PDO-mappable in the EDS"
     assert [m[0] for m in pdos[cia301.TPDO_COMM].mapping] == [0x6064, 0x6078]
+    assert [m[0] for m in pdos[cia301.TPDO_COMM + 2].mapping] == [0x2002]  # the period mean
 
     # Heartbeat at the period written to 0x1017, reporting OPERATIONAL after NMT start.
     started_at = next(f.timestamp_s for f in frames if f.arbitration_id == cia301.NMT_ID
