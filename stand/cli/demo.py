@@ -111,6 +111,7 @@ def _diagnosis_runs(out: Path, motor_name: str, period_s: float) -> list[Any]:
 def run(args: argparse.Namespace) -> dict[str, Any]:
     from stand.diagnosis import diagnose
     from stand.ident.efficiency import efficiency
+    from stand.ident.supply import motor_supply
     from stand.ident.torque_constant import torque_constant
     from stand.profiles import load_motor, load_stand
     from stand.runfile import read_run
@@ -137,7 +138,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     loaded = [read_run(r.path, "single") for r in tc.runs if r.name.startswith("added_inertia")]
     stand = load_stand(eff_exp.stand)
     k_in, k_out = (load_motor(m).motor.Kt for m in (stand.motor_in, stand.motor_out))
-    kt = torque_constant(no_load, loaded, tc_exp.added_inertia_kgm2)
+    # the lab's motor profile tells the identification the drive (its speed loop's gains
+    # bound what the period-mean current can miss), as `stand torque-constant --motor` does
+    kt = torque_constant(no_load, loaded, tc_exp.added_inertia_kgm2,
+                         supply=motor_supply(str(tc_exp.motor)))
     eta = efficiency(read_run(eff.runs[0].path, "reducer"), stand.reducer.ratio, k_in, k_out)
     log.info("  torque constant and efficiency identified")
     diag = _diagnosis_runs(out / "diagnosis", str(tc_exp.motor), float(tc_exp.period_s or 1e-3))
@@ -157,7 +161,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         storage.add_result("torque-constant", {"no_load": [ids[r.name] for r in tc.runs
                                                            if r.name.startswith("no_load")],
                                                "loaded": [ids[r.name] for r in tc.runs
-                                                          if r.name.startswith("added_inertia")]},
+                                                          if r.name.startswith("added_inertia")],
+                                               "motor": str(tc_exp.motor)},
                            to_jsonable(kt))
         if gap is not None:
             storage.add_result("diagnose", {"train": ids["diagnosis_train"],

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from stand.diagnosis.model import ModelSpec, period_mean_current
-from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, prepare, quantization_step
+from stand.diagnosis.signals import MIN_DIAGNOSE_SAMPLES, Signals, prepare, quantization_step
 from stand.errors import InputError, NotExcitedError
 from stand.ident.checks import effect_params, rest_warning, run_warnings
 from stand.ident.closed_loop import ClosedLoopFit, fit_closed_loop
@@ -32,7 +32,14 @@ from stand.ident.derivatives import auto_half_width, state_derivatives
 from stand.ident.estimate import Estimate, block_count, solve_blocks, t_quantile
 from stand.ident.noise import noise_sigma
 from stand.ident.qmatrix import QSums, solve
-from stand.ident.select import Fitter, model_disagreement, model_variance, parse_effects, select
+from stand.ident.select import (
+    Fitter,
+    Selection,
+    model_disagreement,
+    model_variance,
+    parse_effects,
+    select,
+)
 from stand.ident.speed_loop import TARGET_COLUMN, SpeedLoop, fit_speed_loop, speed_loop
 from stand.ident.supply import DriveSupply
 from stand.jsonable import JsonResult
@@ -314,8 +321,7 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
         currents.append((loop.period_current - no_load_current_A, 0.0, "speed_law"))
     fits = []
     for current, known_timing, source in currents:
-        design = Design.build(replace(sig, current=current, cache={}), h,
-                              2 * h + 1 + INSTRUMENT_MARGIN)
+        design = _design(replace(sig, current=current, cache={}), h)
         fitter = Fitter(design, first, run.source)
         if loop is not None:
             # the law's current is the period's own (no timing to fit); the sampled current
@@ -334,14 +340,9 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
     est = est.with_variance("current", spread)
     if source == CURRENT_MEAN_COLUMN:
         # the period's mean is not the current's shape within it (a kick early in the
-        # period moves the angle more than its mean says), which no column here
-        # models: where the next-best input gives another Kt/J, Kt/J is known no better
-        # than the two agree; under a speed loop at most by what the samples miss of
-        # its kicks (the shape's error is a part of that miss)
-        shape = model_disagreement(fits[1][4].estimate, est, "current")
-        if loop is not None:
-            shape = min(shape, missed_kick_variance(loop, est, run.dt_s) or shape)
-        est = est.with_variance("current", shape)
+        # period moves the angle more than its mean says), which no column here models
+        est = est.with_variance("current", _mean_shape_variance(
+            design, fitter, chosen, fits[1][4].estimate, loop, supply, run.dt_s))
         loop = None  # the drive measured the current over each period: nothing to rebuild
     refined = _closed_loop(run, loop, spec, est, sigma, supply, warnings) if loop is not None else None
     if loop is not None and refined is not None and refined.holds:
@@ -376,6 +377,43 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
     result = _result(run, est, "default", no_load_current_A, h, chosen.effects, params,
                      warnings, estimator, timing)
     return replace(result, current_input=source), refined is not None and refined.holds
+
+
+def _design(sig: Signals, h: int) -> Design:
+    """The extended model's design of ``sig`` with the derivative filter of half width ``h``."""
+    return Design.build(sig, h, 2 * h + 1 + INSTRUMENT_MARGIN)
+
+
+def _mean_shape_variance(design: Design, fitter: Fitter, chosen: Selection,
+                         next_best: Estimate, loop: SpeedLoop | None,
+                         supply: DriveSupply | None, dt: float) -> float:
+    """Variance of Kt/J from the current's shape within each period, where the drive's
+    period mean drives the model (``chosen``, fitted by ``fitter`` on ``design``).
+
+    Two parts. What the same model fitted through a derivative filter twice as wide
+    disagrees with it (Hausman): a shape within one period weighs less at half the
+    bandwidth, so a shape that matters shows as a Kt/J that moves with the filter. And,
+    under a speed loop, a bound on the kick's place within the period: the samples miss
+    up to the share ``π·f_loop·Δt`` of the current (:func:`missed_kick_variance`); the
+    mean holds all of it and misses only where in the period it came, an error second
+    order in that share, ``(π·f_loop·Δt)²`` of Kt/J, as a rectangular distribution (GUM),
+    and no more than the next-best input disagrees (``next_best``). The loop's ``kp`` is
+    its law's, else the drive's (``supply``); with neither, the disagreement alone."""
+    est = chosen.estimate
+    disagreement = model_disagreement(next_best, est, "current")
+    wide = Fitter(_design(design.sig, 2 * design.half_width), fitter.estimator, fitter.source)
+    wide.timing = fitter.timing
+    try:
+        variance = model_disagreement(wide.fit(chosen.spec), est, "current")
+    except NotExcitedError:  # too short for the wider filter: as far as the inputs agree
+        return disagreement
+    if loop is not None:
+        a = est.value("current")
+        kp = loop.kp if loop.kp > 0 else ((supply.speed_kp or 0.0) if supply else 0.0)
+        share = 0.5 * kp * a * dt  # π·f_loop·Δt
+        bound = share**2 * a if kp > 0 and a > 0 else 0.0
+        variance += min(disagreement, bound**2 / 3.0) if bound else disagreement
+    return variance
 
 
 def missed_kick_variance(loop: SpeedLoop, est: Estimate, dt: float) -> float:
