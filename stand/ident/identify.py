@@ -343,6 +343,12 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
         # period moves the angle more than its mean says), which no column here models
         est = est.with_variance("current", _mean_shape_variance(
             design, fitter, chosen, fits[1][4].estimate, loop, supply, run.dt_s))
+        if loop is not None and not _loop_kp(loop, supply):
+            warnings.append(
+                "the drive's period-mean current drives Kt/J, but the speed loop's gain is "
+                "unknown (its law could not be fitted): the interval is as wide as the mean "
+                "and the sampled current disagree; give --motor PROFILE with the drive's "
+                "speed_kp to bound it by the loop's kick instead")
         loop = None  # the drive measured the current over each period: nothing to rebuild
     refined = _closed_loop(run, loop, spec, est, sigma, supply, warnings) if loop is not None else None
     if loop is not None and refined is not None and refined.holds:
@@ -409,11 +415,19 @@ def _mean_shape_variance(design: Design, fitter: Fitter, chosen: Selection,
         return disagreement
     if loop is not None:
         a = est.value("current")
-        kp = loop.kp if loop.kp > 0 else ((supply.speed_kp or 0.0) if supply else 0.0)
+        kp = _loop_kp(loop, supply)
         share = 0.5 * kp * a * dt  # π·f_loop·Δt
         bound = share**2 * a if kp > 0 and a > 0 else 0.0
         variance += min(disagreement, bound**2 / 3.0) if bound else disagreement
     return variance
+
+
+def _loop_kp(loop: SpeedLoop, supply: DriveSupply | None) -> float:
+    """The speed loop's proportional gain, A per rad/s: its law's, else the drive's
+    (``supply``, from a motor profile); 0 where neither is known."""
+    if loop.kp > 0:
+        return loop.kp
+    return (supply.speed_kp or 0.0) if supply else 0.0
 
 
 def missed_kick_variance(loop: SpeedLoop, est: Estimate, dt: float) -> float:

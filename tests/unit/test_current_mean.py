@@ -151,6 +151,11 @@ def test_the_period_means_interval_is_bounded_by_the_loops_kick_not_by_the_sampl
     assert result.current_input == CURRENT_MEAN_COLUMN
     assert low <= truth <= high
     assert (high - low) / 2 < 0.015 * truth
+    assert not any("--motor" in w for w in result.warnings)
+    # without the profile the loop's gain is unknown: as wide as the inputs disagree, said
+    unknown = identify_run(run)
+    assert (unknown.Kt_over_J_ci95[1] - unknown.Kt_over_J_ci95[0]) / 2 > 0.05 * truth
+    assert any("speed loop's gain is unknown" in w and "--motor" in w for w in unknown.warnings)
 
 
 def test_where_the_kick_is_a_large_share_of_the_period_the_interval_widens_to_hold() -> None:
