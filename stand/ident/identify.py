@@ -341,9 +341,10 @@ def _fitted(run: Run, loop: SpeedLoop | None, no_load_current_A: float,
     if source == CURRENT_MEAN_COLUMN:
         # the period's mean is not the current's shape within it (a kick early in the
         # period moves the angle more than its mean says), which no column here models
+        kp = None if loop is None else _loop_kp(loop, supply)
         est = est.with_variance("current", _mean_shape_variance(
-            design, fitter, chosen, fits[1][4].estimate, loop, supply, run.dt_s))
-        if loop is not None and not _loop_kp(loop, supply):
+            design, fitter, chosen, fits[1][4].estimate, kp, run.dt_s))
+        if kp == 0.0:
             warnings.append(
                 "the drive's period-mean current drives Kt/J, but the speed loop's gain is "
                 "unknown (its law could not be fitted): the interval is as wide as the mean "
@@ -391,8 +392,7 @@ def _design(sig: Signals, h: int) -> Design:
 
 
 def _mean_shape_variance(design: Design, fitter: Fitter, chosen: Selection,
-                         next_best: Estimate, loop: SpeedLoop | None,
-                         supply: DriveSupply | None, dt: float) -> float:
+                         next_best: Estimate, kp: float | None, dt: float) -> float:
     """Variance of Kt/J from the current's shape within each period, where the drive's
     period mean drives the model (``chosen``, fitted by ``fitter`` on ``design``).
 
@@ -403,8 +403,9 @@ def _mean_shape_variance(design: Design, fitter: Fitter, chosen: Selection,
     up to the share ``π·f_loop·Δt`` of the current (:func:`missed_kick_variance`); the
     mean holds all of it and misses only where in the period it came, an error second
     order in that share, ``(π·f_loop·Δt)²`` of Kt/J, as a rectangular distribution (GUM),
-    and no more than the next-best input disagrees (``next_best``). The loop's ``kp`` is
-    its law's, else the drive's (``supply``); with neither, the disagreement alone."""
+    and no more than the next-best input disagrees (``next_best``). ``kp`` is the loop's
+    gain (:func:`_loop_kp`; None: no speed loop); where it is 0 (unknown), the
+    disagreement alone."""
     est = chosen.estimate
     disagreement = model_disagreement(next_best, est, "current")
     wide = Fitter(_design(design.sig, 2 * design.half_width), fitter.estimator, fitter.source)
@@ -413,11 +414,9 @@ def _mean_shape_variance(design: Design, fitter: Fitter, chosen: Selection,
         variance = model_disagreement(wide.fit(chosen.spec), est, "current")
     except NotExcitedError:  # too short for the wider filter: as far as the inputs agree
         return disagreement
-    if loop is not None:
+    if kp is not None:
         a = est.value("current")
-        kp = _loop_kp(loop, supply)
-        share = 0.5 * kp * a * dt  # π·f_loop·Δt
-        bound = share**2 * a if kp > 0 and a > 0 else 0.0
+        bound = _kick_share(kp, a, dt) ** 2 * a if kp > 0 and a > 0 else 0.0
         variance += min(disagreement, bound**2 / 3.0) if bound else disagreement
     return variance
 
@@ -444,8 +443,15 @@ def missed_kick_variance(loop: SpeedLoop, est: Estimate, dt: float) -> float:
     a = est.value("current")
     if not (loop.kp > 0 and a > 0):
         return 0.0
-    bound = 0.5 * loop.kp * a * dt * a   # π·f_loop·Δt of Kt/J
+    bound = _kick_share(loop.kp, a, dt) * a   # π·f_loop·Δt of Kt/J
     return float(bound**2 / 3.0)
+
+
+def _kick_share(kp: float, kt_over_j: float, dt: float) -> float:
+    """``π·f_loop·Δt``: the share of a speed loop's current kick the samples can miss, for
+    a loop of gain ``kp`` (A per rad/s) on a motor of ``Kt/J`` sampled every ``dt``
+    (``f_loop = kp·Kt/(2π·J)``)."""
+    return 0.5 * kp * kt_over_j * dt
 
 
 def _closed_loop(run: Run, loop: SpeedLoop, spec: ModelSpec, est: Estimate,
