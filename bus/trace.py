@@ -1,13 +1,14 @@
 """Raw traffic of a run, in a standard python-can log format chosen by suffix.
 
 ``.log`` (candump), ``.asc`` (Vector ASCII) or ``.blf`` (Vector binary). Frames the master
-receives come from the bus reader thread; frames it sends are logged by the sender, the
-master's :class:`MasterNetwork`.
+receives come from the bus reader thread, frames it sends from the sender, the master's
+:class:`MasterNetwork`; both are queued and written by the trace's own thread.
 """
 
 from __future__ import annotations
 
 import contextlib
+import queue
 import threading
 import time
 from pathlib import Path
@@ -18,15 +19,21 @@ import canopen
 from stand.errors import BusError, InputError, StorageError
 
 TRACE_SUFFIXES = (".log", ".asc", ".blf")
+#: Frames the trace's writer may fall behind before the trace ends (about 25 s of a 1 Mbit/s
+#: bus at full load, some 100 MB of queued messages).
+MAX_BEHIND_FRAMES = 200_000
 
 
 class Trace(can.Listener):
-    """A thread-safe writer of one trace file.
+    """A thread-safe writer of one trace file, on a thread of its own.
 
-    A write that fails (a full disk, a file system gone) ends the trace, never the caller:
-    frames come from python-can's bus reader thread, which an exception would end, and with
-    it every SDO answer, heartbeat and EMCY the master needs to stop the drives. The
-    failure is kept in :attr:`error` for the run to act on.
+    Frames are queued by the threads that hear or send them and written by the trace's own
+    thread. A file that takes writes slowly (a busy disk, a network share, a pipe) holds
+    the trace back, never the bus reader: the reader hands on every TPDO, SDO answer,
+    heartbeat and EMCY in time, and a window closed while it waited on the disk would lose
+    its samples. A write that fails (a full disk, a file system gone) ends the trace, never
+    the caller; the failure is kept in :attr:`error` for the run to act on, as is a writer
+    that falls more than :data:`MAX_BEHIND_FRAMES` behind.
     """
 
     def __init__(self, path: str | Path, echoed: tuple[int, ...] = ()) -> None:
@@ -39,49 +46,71 @@ class Trace(can.Listener):
             raise InputError(f"trace file must end in {', '.join(TRACE_SUFFIXES)}: {self.path}")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._writer = can.Logger(str(self.path))
+        self._queue: queue.SimpleQueue[can.Message | None] = queue.SimpleQueue()
         self._lock = threading.Lock()
+        #: Frames written so far.
         self.frames = 0
         self._closed = False
         #: Why the trace ended early, or None.
         self.error: StorageError | None = None
+        self._thread = threading.Thread(target=self._write_queued, name=f"trace-{self.path.name}",
+                                        daemon=True)
+        self._thread.start()
 
     def on_message_received(self, msg: can.Message) -> None:
-        self._log(msg)
-
-    def _log(self, msg: can.Message) -> None:
-        with self._lock:
-            if self._closed:
-                return
-            try:
-                self._writer.on_message_received(msg)
-            except Exception as exc:  # any exception would end the bus reader
-                self._fail(exc)
-                return
-            self.frames += 1
-
-    def _fail(self, exc: Exception) -> None:
-        """End the trace after a failed write (lock held)."""
-        self._closed = True
-        self.error = StorageError(f"cannot write trace file {self.path}: {exc}; the trace ends "
-                                  f"after {self.frames} frames")
-        with contextlib.suppress(Exception):  # the file is already lost; closing is best effort
-            self._writer.stop()
+        self._put(msg)
 
     def sent(self, msg: can.Message) -> None:
         """Log a frame the master sent (stamped now), unless the bus hands it back."""
         if not msg.is_extended_id and msg.arbitration_id in self.echoed:
             return
         msg.timestamp = time.time()
-        self._log(msg)
+        self._put(msg)
+
+    def _put(self, msg: can.Message) -> None:
+        with self._lock:  # one order for frames heard and sent, none after stop()
+            if self._closed or self.error is not None:
+                return
+            if self._queue.qsize() > MAX_BEHIND_FRAMES:
+                self.error = StorageError(
+                    f"cannot write trace file {self.path} fast enough: {MAX_BEHIND_FRAMES} frames "
+                    f"waiting; the trace ends after {self.frames} frames")
+                return
+            self._queue.put(msg)
+
+    def _write_queued(self) -> None:
+        """The writer thread: frames in the order queued until :meth:`stop`, then the file's
+        end (its last buffered frames) is written."""
+        while (msg := self._queue.get()) is not None:
+            if self.error is not None:
+                continue  # the file is lost: the queue is only drained
+            try:
+                self._writer.on_message_received(msg)
+            except Exception as exc:  # any failure of the file ends the trace
+                self._fail(exc)
+                continue
+            self.frames += 1
+        try:
+            self._writer.stop()
+        except Exception as exc:  # reported as a failed write is
+            if self.error is None:
+                self._fail(exc)
+
+    def _fail(self, exc: Exception) -> None:
+        """End the trace after a failed write."""
+        self.error = StorageError(f"cannot write trace file {self.path}: {exc}; the trace ends "
+                                  f"after {self.frames} frames")
+        with contextlib.suppress(Exception):  # the file is already lost; closing is best effort
+            self._writer.stop()
 
     def stop(self) -> None:
+        """Write what is queued and close the file (returns once it is written)."""
         with self._lock:
-            if not self._closed:
-                self._closed = True
-                try:
-                    self._writer.stop()  # the last buffered frames are written now
-                except Exception as exc:  # reported as a failed write is
-                    self._fail(exc)
+            if self._closed:
+                return
+            self._closed = True
+            self._queue.put(None)
+        self._thread.join()
 
 
 class MasterNetwork(canopen.Network):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from pathlib import Path
@@ -164,3 +165,41 @@ def test_a_trace_that_cannot_be_written_stops_the_run_and_not_the_bus(
         sdo.RESPONSE_TIMEOUT = LIVENESS_SDO_TIMEOUT_S
         statusword = sdo.upload(0x6041, 0)
     assert int.from_bytes(statusword, "little") & 0x6F == 0x07  # quick stop active
+
+
+#: The reader of a trace on a FIFO (a stalled disk or network share) stops reading this
+#: often, for this long each time (s): longer than the PDO timeout below, so a stall of the
+#: bus reader would lose windows; between stalls it takes this many bytes.
+TRACE_STALLS = 6
+TRACE_STALL_S = 0.6
+TRACE_CHUNK = 16384
+STALL_PDO_TIMEOUT_S = 0.3
+
+
+def test_a_stalled_trace_file_loses_no_sample(can_config: BusConfig, tmp_path: Path) -> None:
+    """The trace is written apart from the bus reader: a file that takes writes slowly (here
+    a FIFO whose reader pauses) holds the trace back, never the TPDOs, SDO answers and
+    heartbeats of the run; the trace still ends complete."""
+    fifo = tmp_path / "t.log"
+    os.mkfifo(fifo)
+    read: list[bytes] = []
+
+    def slow_reader() -> None:
+        with open(fifo, "rb") as f:
+            for _ in range(TRACE_STALLS):
+                time.sleep(TRACE_STALL_S)  # the pipe fills meanwhile: writes block
+                read.append(f.read(TRACE_CHUNK))
+            read.append(f.read())
+
+    reader = threading.Thread(target=slow_reader, daemon=True)
+    reader.start()
+    windows = 2000
+    with StandBus(STAND, can_config, simulate=True, heartbeat_period_s=CALM_HEARTBEAT_S,
+                  pdo_timeout_s=STALL_PDO_TIMEOUT_S) as bus:
+        (procedure, drives), = plan(SHORT)
+        bus.setup(drives, procedure.sample_period_s)
+        samples = bus.run(np.zeros((2, windows)), trace_path=fifo)
+    reader.join(timeout=60)
+    assert samples.complete, [(d.lost, d.late, d.duplicates) for d in samples.drives]
+    syncs = sum(1 for line in b"".join(read).decode().splitlines() if " 080#" in line)
+    assert syncs == windows
