@@ -222,7 +222,12 @@ def sync_cycles(master: Master, cycles: int) -> None:
     """``cycles`` SYNCs outside a run, each after the drives' RPDOs with their present
     controlword and a zero target (a synchronous RPDO acts only at the next SYNC: the stop
     cycles after a quick stop). Where the bus hands the SYNCs back, it returns once the last
-    came back (so a trace being written holds it)."""
+    came back (so a trace being written holds it).
+
+    In lockstep each SYNC goes once every drive answered the one before, as in a run
+    (:class:`_Answers`): sent back to back, the SYNCs queue up before the drives, and the
+    SDO that follows them (the disable of a stop) waits behind all of them beyond its
+    timeout (seen on a loaded User-Mode Linux guest on every run)."""
     network, counter = master.network, master.sync_counter
     last = threading.Event()
     data = b""
@@ -233,6 +238,7 @@ def sync_cycles(master: Master, cycles: int) -> None:
 
     if master.sync_echo:
         network.subscribe(SYNC_COB_ID, on_sync)
+    answers = _Answers(master) if master.time_mode == "lockstep" else None
     try:
         for k in range(cycles):
             for d in master.drives:
@@ -242,12 +248,49 @@ def sync_cycles(master: Master, cycles: int) -> None:
             if k == cycles - 1:
                 data = frame
             network.send_message(SYNC_COB_ID, frame)
-            time.sleep(0 if master.time_mode == "lockstep" else master.period_s)
+            if answers is not None:
+                answers.wait(k + 1)
+            else:
+                time.sleep(master.period_s)
         if master.sync_echo and cycles:
             last.wait(ECHO_TIMEOUT_S)
     finally:
         if master.sync_echo:
             network.unsubscribe(SYNC_COB_ID, on_sync)
+        if answers is not None:
+            answers.close()
+
+
+class _Answers:
+    """Counts each drive's answers to SYNCs outside a run: its last TPDO of each SYNC."""
+
+    def __init__(self, master: Master) -> None:
+        self.network = master.network
+        self.timeout_s = master.pdo_timeout_s
+        self.counts = {d.tpdos[-1][0]: 0 for d in master.drives if d.tpdos}
+        self.changed = threading.Condition()
+        #: False once a drive did not answer within the PDO timeout: the SYNCs left go
+        #: without waiting (a drive that left OPERATIONAL never answers).
+        self.waiting = True
+        for cob_id in self.counts:
+            self.network.subscribe(cob_id, self._on_tpdo)
+
+    def _on_tpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        with self.changed:
+            self.counts[can_id] += 1
+            self.changed.notify_all()
+
+    def wait(self, answers: int) -> None:
+        """Return once every drive answered ``answers`` SYNCs, or the PDO timeout passed."""
+        if not self.waiting:
+            return
+        with self.changed:
+            self.waiting = self.changed.wait_for(
+                lambda: all(n >= answers for n in self.counts.values()), self.timeout_s)
+
+    def close(self) -> None:
+        for cob_id in self.counts:
+            self.network.unsubscribe(cob_id, self._on_tpdo)
 
 
 def _raw_targets(drive: Drive, values: np.ndarray) -> list[int]:

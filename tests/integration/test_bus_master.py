@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 import time
@@ -203,3 +204,29 @@ def test_a_stalled_trace_file_loses_no_sample(can_config: BusConfig, tmp_path: P
     assert samples.complete, [(d.lost, d.late, d.duplicates) for d in samples.drives]
     syncs = sum(1 for line in b"".join(read).decode().splitlines() if " 080#" in line)
     assert syncs == windows
+
+
+#: An SDO timeout for the stop, shorter than the simulated stand takes to work through the
+#: stop cycles when they are all sent before it answers any (100 SYNCs of a 0.1 s ramp at
+#: 1 ms, each six TPDOs and a step of the plant: 0.3 s and more in a loaded User-Mode Linux
+#: guest), and far longer than one SDO answer takes, s.
+STOP_SDO_TIMEOUT_S = 0.1
+
+
+def test_lockstep_stop_cycles_wait_for_the_drives_before_disabling_them(
+        can_config: BusConfig, caplog: pytest.LogCaptureFixture) -> None:
+    """A lockstep stop sends each stop SYNC once the drives answered the one before, as its
+    run does: the disable that follows is answered within an SDO timeout, and the drives
+    end switched off, not left in quick stop behind a queue of SYNCs."""
+    with StandBus(STAND, can_config, simulate=True, heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+        assert bus.sim is not None
+        (procedure, drives), = plan(SHORT)
+        bus.setup(drives, procedure.sample_period_s)
+        bus.run(np.zeros((2, 50)))
+        for drive in bus.master.drives:
+            drive.node.sdo.RESPONSE_TIMEOUT = STOP_SDO_TIMEOUT_S
+        with caplog.at_level(logging.WARNING, logger="bus.master"):
+            bus.stop_drives()
+        for node in bus.sim.nodes:
+            assert node.sm.state is cia402.State.SWITCH_ON_DISABLED, node.id
+    assert not [r.getMessage() for r in caplog.records if "no SDO answer" in r.getMessage()]
