@@ -31,8 +31,8 @@ from bus.cia301 import (
 )
 from bus.device import CIA402_PROFILE, DeviceIdentity, eds_identity, is_simulated
 from bus.eds import DEFAULT_EDS, Scaling, load_od
-from bus.pdo import COB_ID_INVALID, SYNCHRONOUS, Layout, entries_for
-from stand.errors import BusError, BusTimeout, DeviceMismatch, DriveFault, InputError
+from bus.pdo import COB_ID_INVALID, SYNCHRONOUS, Layout, Mapped, entries_for, mapped_variable
+from stand.errors import BusError, BusTimeout, DeviceMismatch, DriveFault, InputError, ProfileError
 
 #: Time an SDO answer may take, s.
 SDO_TIMEOUT_S = 0.3
@@ -60,6 +60,11 @@ class DriveConfig:
         Its EDS (default: the simulated drive's).
     velocity : bool
         Also map velocity actual (and, on a simulated drive, voltage actual 0x2001) into TPDO2.
+    current_mean : (int, int) or None
+        The drive's object (index, subindex) holding its current averaged over each SYNC
+        period, mapped into TPDO3 (the motor profile's ``drive.current_mean_object``; its
+        unit is ``scaling.current_mean_unit_A``). None: the simulated drive's 0x2002 where
+        the drive is the simulated one, else none.
     """
 
     node_id: int
@@ -67,22 +72,27 @@ class DriveConfig:
     scaling: Scaling
     eds: str | Path | None = None
     velocity: bool = True
+    current_mean: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in DRIVE_MODES:
             raise InputError(f"drive mode must be one of {', '.join(DRIVE_MODES)}, not {self.mode!r}")
 
 
-def tpdo_objects(od: canopen.ObjectDictionary, simulated: bool = True) -> list[list[int]]:
+def tpdo_objects(od: canopen.ObjectDictionary, simulated: bool = True,
+                 current_mean: tuple[int, int] | None = None) -> list[list[Mapped]]:
     """The objects the master maps into the TPDOs of a drive with object dictionary
     ``od``: TPDO1 position and current actual; TPDO2 velocity actual (and voltage actual
     when the drive is the simulated one and ``od`` has 0x2001, an object only the
-    simulation has); on the simulated drive whose ``od`` offers it, TPDO3 the current
-    averaged over the communication cycle (0x2002: column ``current_mean_A``)."""
+    simulation has); TPDO3 the current averaged over the communication cycle (column
+    ``current_mean_A``): the object ``current_mean`` (index, subindex) names, else, on the
+    simulated drive whose ``od`` offers it, 0x2002."""
     voltage = simulated and cia402.VOLTAGE_ACTUAL in od
-    second = [cia402.VELOCITY_ACTUAL] + ([cia402.VOLTAGE_ACTUAL] if voltage else [])
-    objects = [[cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL], second]
-    if simulated and cia402.CURRENT_MEAN in od and TPDO_COMMUNICATION + 2 in od:
+    second: list[Mapped] = [cia402.VELOCITY_ACTUAL, *([cia402.VOLTAGE_ACTUAL] if voltage else [])]
+    objects: list[list[Mapped]] = [[cia402.POSITION_ACTUAL, cia402.CURRENT_ACTUAL], second]
+    if current_mean is not None:
+        objects.append([current_mean])
+    elif simulated and cia402.CURRENT_MEAN in od and TPDO_COMMUNICATION + 2 in od:
         objects.append([cia402.CURRENT_MEAN])
     return objects
 
@@ -95,6 +105,8 @@ class Drive:
         self.config = config
         self.id = config.node_id
         self.od = load_od(config.eds, config.node_id)
+        if config.current_mean is not None:
+            self._check_current_mean(config.current_mean)
         self.node = canopen.RemoteNode(config.node_id, self.od)
         self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
         self.node.sdo.MAX_RETRIES = 1  # canopen counts the first try: one try, no retry
@@ -107,6 +119,24 @@ class Drive:
         self.rpdo: Layout | None = None
         self.tpdos: list[tuple[int, Layout]] = []
         self.controlword = cia402.CW_DISABLE_VOLTAGE
+
+    def _check_current_mean(self, address: tuple[int, int]) -> None:
+        """Refuse, before anything is written, a period-mean current object that the EDS
+        lacks or that no free TPDO can carry (TPDO3 holds it)."""
+        index, sub = address
+        where = (f"node {self.id}: the motor profile's drive.current_mean_object "
+                 f"0x{index:04X}:{sub:02X}")
+        eds = self.config.eds or DEFAULT_EDS
+        try:
+            var = mapped_variable(self.od, index, sub)
+        except ProfileError as exc:
+            raise ProfileError(f"{where} is not in the drive's EDS {eds}; name an object the "
+                               "drive has, or leave the field out") from exc
+        if not var.pdo_mappable:
+            raise ProfileError(f"{where} ({var.name}) is not PDO-mappable in {eds}")
+        if TPDO_COMMUNICATION + 2 not in self.od:
+            raise ProfileError(f"{where}: {eds} offers no TPDO3 (0x{TPDO_COMMUNICATION + 2:04X}) "
+                               "to carry it")
 
     # -- SDO ---------------------------------------------------------------------------
     def _variable(self, index: int, subindex: int) -> Any:
@@ -209,7 +239,7 @@ class Drive:
                     "nothing was written to it")
 
     # -- PDO mapping -------------------------------------------------------------------
-    def _map(self, comm: int, mapping: int, indices: list[int]) -> tuple[int, Layout]:
+    def _map(self, comm: int, mapping: int, indices: list[Mapped]) -> tuple[int, Layout]:
         cob_id = int(self.read(comm, 1)) & 0x7FF
         self.write(comm, 1, cob_id | COB_ID_INVALID)
         self.write(mapping, 0, 0)
@@ -233,7 +263,7 @@ class Drive:
         self.rpdo_cob_id, self.rpdo = self._map(RPDO_COMMUNICATION, RPDO_MAPPING,
                                                 [cia402.CONTROLWORD, target])
         self._unmap(RPDO_COMMUNICATION + 1)
-        first, second, *rest = tpdo_objects(self.od, self.simulated)
+        first, second, *rest = tpdo_objects(self.od, self.simulated, self.config.current_mean)
         self.tpdos = [self._map(TPDO_COMMUNICATION, TPDO_MAPPING, first)]
         if self.config.velocity:
             self.tpdos.append(self._map(TPDO_COMMUNICATION + 1, TPDO_MAPPING + 1, second))

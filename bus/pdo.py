@@ -19,6 +19,8 @@ _FORMATS = {0x1: "?", 0x2: "b", 0x3: "h", 0x4: "i", 0x5: "B", 0x6: "H", 0x7: "I"
             0x15: "q", 0x1B: "Q", 0x11: "d"}
 #: Bit 31 of a PDO COB-ID: the PDO does not exist / is disabled.
 COB_ID_INVALID = 0x8000_0000
+#: An object to map: its index (the variable at sub-index 0), or (index, sub-index).
+Mapped = int | tuple[int, int]
 #: Transmission type: synchronous, every SYNC.
 SYNCHRONOUS = 1
 MAX_PDO_BYTES = 8
@@ -42,10 +44,8 @@ class Layout:
         for value in entries:
             index, subindex = value >> 16, (value >> 8) & 0xFF
             try:
-                obj = od[index]
-                var = obj if isinstance(obj, canopen.objectdictionary.ODVariable) else obj[subindex]
-                fmt += _FORMATS[int(var.data_type or 0)]
-            except KeyError as exc:
+                fmt += _FORMATS[int(mapped_variable(od, index, subindex).data_type or 0)]
+            except (KeyError, ProfileError) as exc:
                 raise ProfileError(
                     f"PDO mapping entry 0x{value:08X}: object 0x{index:04X}:{subindex} is not in "
                     "the object dictionary or has no fixed-size type"
@@ -67,13 +67,22 @@ class Layout:
         return self.packer.unpack_from(data)
 
 
-def entries_for(od: canopen.ObjectDictionary, indices: Sequence[int]) -> list[int]:
-    """Mapping entries (sub-index 0) of the variables ``indices``, with their bit lengths."""
-    out = []
-    for index in indices:
-        try:
-            var = od[index]
-        except KeyError as exc:
-            raise ProfileError(f"object 0x{index:04X} is not in the drive's EDS") from exc
-        out.append(entry(index, 0, len(var)))
-    return out
+def entries_for(od: canopen.ObjectDictionary, objects: Sequence[Mapped]) -> list[int]:
+    """Mapping entries of ``objects`` (an index: the variable at sub-index 0; or (index,
+    sub-index): an entry of a record or array), with their bit lengths."""
+    return [entry(index, sub, len(mapped_variable(od, index, sub)))
+            for index, sub in (o if isinstance(o, tuple) else (o, 0) for o in objects)]
+
+
+def mapped_variable(od: canopen.ObjectDictionary, index: int,
+                    sub: int = 0) -> canopen.objectdictionary.ODVariable:
+    """The variable ``index:sub`` of ``od`` (a variable's own sub-index is 0)."""
+    try:
+        obj = od[index]
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            if sub:
+                raise KeyError(sub)
+            return obj
+        return obj[sub]
+    except KeyError as exc:
+        raise ProfileError(f"object 0x{index:04X}:{sub:02X} is not in the drive's EDS") from exc

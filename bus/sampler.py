@@ -139,20 +139,30 @@ class Sampler:
     targets : sequence of int or None
         Each drive's RPDO target object (0x60FF, 0x6071, ...), or None; the windows keep
         the commanded value of those in :data:`TARGET_FIELDS`.
+    current_means : sequence of int or None
+        Each drive's object (index) holding its current averaged over each period, named
+        by its motor profile, or None (the simulated drive's
+        :data:`~bus.cia402.CURRENT_MEAN` is known anyway): it fills ``current_mean_A``.
     """
 
     def __init__(self, tpdos: dict[int, tuple[int, int, Layout]], node_ids: Sequence[int],
                  scalings: Sequence[Scaling], samples: int, period_s: float,
-                 window_s: float = 0.0, targets: Sequence[int | None] = ()) -> None:
+                 window_s: float = 0.0, targets: Sequence[int | None] = (),
+                 current_means: Sequence[int | None] = ()) -> None:
         self.window_s = window_s
         self.tpdos = tpdos
         self.scalings = list(scalings)
         self.samples = samples
         self.period_s = period_s
         pdos = [sum(1 for d, _, _ in tpdos.values() if d == n) for n in range(len(node_ids))]
+        #: Object index → field, per drive.
+        self.fields = [dict(FIELDS) for _ in node_ids]
+        for n, index in enumerate(current_means):
+            if index is not None:
+                self.fields[n][index] = "current_mean_A"
         self.raw: list[dict[str, np.ndarray]] = []
-        for n in range(len(node_ids)):
-            names = {FIELDS[i] for c in tpdos.values() if c[0] == n for i in c[2].indices if i in FIELDS}
+        for n, fields in enumerate(self.fields):
+            names = {fields[i] for c in tpdos.values() if c[0] == n for i in c[2].indices if i in fields}
             self.raw.append({name: np.full(samples, np.nan) for name in sorted(names)})
         #: Drive number → the field its commanded target fills.
         self.target_fields = {n: TARGET_FIELDS[index] for n, index in enumerate(targets)
@@ -174,7 +184,7 @@ class Sampler:
         self._arrived = 0
         self.complete = threading.Event()
         self._lock = threading.Lock()
-        self._plan = {cob: (d, p, layout, [FIELDS.get(i) for i in layout.indices])
+        self._plan = {cob: (d, p, layout, [self.fields[d].get(i) for i in layout.indices])
                       for cob, (d, p, layout) in tpdos.items()}
 
     def open(self, k: int, wall_s: float, counter: int) -> None:
@@ -284,8 +294,10 @@ class Sampler:
             for name, values in raw.items():
                 if name == "position_rad":
                     columns[name] = _unwrap_int32(values) * s.rad_per_count
-                elif name in ("current_A", "current_mean_A"):
+                elif name == "current_A":
                     columns[name] = values * s.amp_per_unit
+                elif name == "current_mean_A":
+                    columns[name] = values * s.mean_amp_per_unit
                 elif name in ("velocity_rad_s", "speed_target_rad_s"):
                     columns[name] = values * s.velocity_unit_rad_s
                 elif name == "voltage_V":

@@ -68,8 +68,11 @@ class StandBus:
     def setup(self, drives: Sequence[DriveSetup], period_s: float,
               added_inertia_kgm2: float | None = None, time_mode: str = "lockstep",
               trace_path: str | Path | None = None) -> None:
-        configs = [DriveConfig(d.node_id, d.mode, Scaling(d.counts_per_rev, d.rated_current_A),
-                               d.eds or self.eds) for d in drives]
+        configs = [DriveConfig(d.node_id, d.mode,
+                               Scaling(d.counts_per_rev, d.rated_current_A,
+                                       current_mean_unit_A=d.current_mean_unit_A or 0.0),
+                               d.eds or self.eds, current_mean=d.current_mean)
+                   for d in drives]
         self.master.setup(configs, period_s, added_inertia_kgm2, time_mode, trace_path)
 
     def run(self, targets: np.ndarray, *, time_mode: str = "lockstep",

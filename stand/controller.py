@@ -98,6 +98,11 @@ class DriveSetup:
     rated_current_A: float
     eds: str | None = None
     limits: Any = None
+    #: The drive's object holding its current averaged over each SYNC period, (index,
+    #: subindex), and A per count of it (None: per mille of the rated current, as 0x6078);
+    #: the motor profile's ``drive.current_mean_object`` and ``current_mean_unit_A``.
+    current_mean: tuple[int, int] | None = None
+    current_mean_unit_A: float | None = None
 
 
 @dataclass
@@ -138,7 +143,9 @@ class ExperimentResult:
 
 def _drive(profile: MotorProfile, node_id: int, mode: str) -> DriveSetup:
     counts = profile.sensor_params().counts_per_rev or FINE_COUNTS_PER_REV
-    return DriveSetup(node_id, mode, counts, profile.drive.rated_current_A, limits=profile.limits)
+    return DriveSetup(node_id, mode, counts, profile.drive.rated_current_A, limits=profile.limits,
+                      current_mean=profile.drive.current_mean(),
+                      current_mean_unit_A=profile.drive.current_mean_unit_A)
 
 
 def voltage_step_procedure(profile: MotorProfile, step_V: float, duration_s: float,

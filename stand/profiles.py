@@ -13,12 +13,13 @@ profile's YAML and the one that turns a pydantic validation error into a message
 
 from __future__ import annotations
 
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from stand.errors import NotFoundError, ProfileError
 from stand.physics.effects import Effects
@@ -66,6 +67,44 @@ class DriveSpec(_Spec):
     speed_ki: float = Field(0.5, ge=0, description="A per rad")
     node_id: int = Field(1, ge=1, le=127, description="CANopen node id of the drive")
     rated_current_A: float = Field(1.0, gt=0, description="CiA 402 0x6075, A")
+    current_mean_object: int | str | None = Field(
+        None, description="the drive's object holding its current averaged over each SYNC "
+                          "period (column current_mean_A): an index, or 'index:subindex' in hex")
+    current_mean_unit_A: float | None = Field(
+        None, gt=0, description="A per count of current_mean_object (default: per mille of "
+                                "the rated current, as 0x6078)")
+
+    @field_validator("current_mean_object")
+    @classmethod
+    def _object_address(cls, value: int | str | None) -> int | str | None:
+        if value is not None:
+            object_address(value)
+        return value
+
+    def current_mean(self) -> tuple[int, int] | None:
+        """``current_mean_object`` as (index, subindex), or None."""
+        return None if self.current_mean_object is None else object_address(self.current_mean_object)
+
+
+#: What a drive object's address looks like in a profile: ``0x30D1`` or ``0x30D1:01``.
+_ADDRESS = re.compile(r"(?:0x)?([0-9A-Fa-f]{1,4})(?::(?:0x)?([0-9A-Fa-f]{1,2}))?")
+
+
+def object_address(value: int | str) -> tuple[int, int]:
+    """(index, subindex) of an object named as an index (``0x2002``, YAML reads it as an
+    integer) or as ``"index:subindex"`` in hex (``"0x30D1:01"``)."""
+    if isinstance(value, int):
+        index, sub = value, 0
+    else:
+        match = _ADDRESS.fullmatch(value.strip())
+        if match is None:
+            raise ValueError(f"an object is an index or 'index:subindex' in hex, such as "
+                             f"0x30D1:01; got {value!r}")
+        index, sub = int(match[1], 16), int(match[2] or "0", 16)
+    if not 0x1000 <= index <= 0xFFFF:
+        raise ValueError(f"object index 0x{index:X} is outside the object dictionary's "
+                         "0x1000-0xFFFF")
+    return index, sub
 
 
 class SensorSpec(_Spec):
@@ -99,7 +138,8 @@ class MotorProfile(_Spec):
         return MotorParams(**self.motor.model_dump())
 
     def drive_params(self, mode: str | None = None) -> DriveParams:
-        spec = self.drive.model_dump(exclude={"node_id", "rated_current_A"})
+        spec = self.drive.model_dump(exclude={"node_id", "rated_current_A", "current_mean_object",
+                                              "current_mean_unit_A"})
         if mode is not None:
             spec["mode"] = mode
         return DriveParams(**spec)

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 
 from bus.adapters import BusConfig, connect_network
@@ -18,13 +20,16 @@ from bus.sim_device import SimIoDevice
 from bus.simstand import SimStand
 from bus.stand_bus import StandBus
 from stand.controller import ExperimentProfile, StandController, plan
-from stand.errors import DeviceMismatch, InputError
+from stand.errors import DeviceMismatch, InputError, ProfileError
+from stand.runfile import CURRENT_MEAN_COLUMN, read_run
 
 MOTOR = "crouzet_82800502"
 #: Heartbeat period: long enough that a one-CPU User-Mode Linux on a loaded host never
 #: starves a heartbeat into a false alarm, s.
 CALM_HEARTBEAT_S = 0.5
 IO_NODE = 5
+#: Noise seed of the simulated drives, the same for every run compared.
+SEED = 3
 #: A vendor's identity for the "real" drive (any vendor id and product code but ours).
 VENDOR_ID, PRODUCT_CODE = 0x000001AB, 0x00402001
 #: SDO client command specifier (CiA 301 §7.2.4.3): bits 5-7 of the first byte; 1 starts a
@@ -151,3 +156,69 @@ def test_a_drive_whose_units_are_not_the_profiles_is_refused_before_anything_is_
         finally:
             notifier.stop()
     assert requests.commands and CCS_DOWNLOAD not in requests.commands  # reads only
+
+
+def _mean_currents(folder: Path) -> np.ndarray:
+    (path,) = folder.glob("*.csv")
+    return read_run(path, "single")[CURRENT_MEAN_COLUMN]
+
+
+#: A run the simulated drive and the "vendor's" run alike (no added inertia, which only the
+#: simulated drive is told of).
+NO_LOAD = ExperimentProfile(name="x", procedure="no_load", motor=MOTOR, repeats=1,
+                            duration_s=0.5, period_s=0.001)
+#: A per count of the "vendor's" period-mean current in the second case: twice the per
+#: mille of the 1 A rated current that the simulated drive's 0x2002 counts in.
+DOUBLE_UNIT_A = 0.002
+
+
+@pytest.mark.parametrize(("unit", "scale"), [(None, 1.0), (DOUBLE_UNIT_A, 2.0)])
+def test_a_real_drive_maps_the_period_mean_current_its_motor_profile_names(
+        can_config: BusConfig, tmp_path: Path, unit: float | None, scale: float) -> None:
+    """A real drive gets no object of the simulation's (0x2002 is the vendor's own here),
+    unless the motor profile names it as the drive's current averaged over each SYNC
+    period (``drive.current_mean_object``, in ``current_mean_unit_A``): then TPDO3
+    carries it into the run's ``current_mean_A``, as the simulated drive's own does."""
+    (procedure, drives), = plan(NO_LOAD)
+    vendor = vendor_file(tmp_path, ".eds")
+    named = [replace(drives[0], current_mean=(0x2002, 0), current_mean_unit_A=unit)]
+    runs = {}
+    for name, setup, eds in (("plain", drives, vendor), ("named", named, vendor),
+                             ("simulated", drives, None)):
+        folder = tmp_path / name
+        with SimStand(MOTOR, can_config, seed=SEED, eds=eds), \
+                StandBus(None, can_config, simulate=False, eds=eds,
+                         heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+            record = StandController(bus).run_procedure(procedure, setup, folder)
+            assert record.complete
+            runs[name] = [layout.indices for _, layout in bus.master.drives[0].tpdos]
+        if name != "plain":
+            runs[name + " column"] = _mean_currents(folder)
+    assert runs["plain"] == [(0x6064, 0x6078), (0x606C,)]  # no TPDO3 on a real drive
+    assert runs["named"] == [(0x6064, 0x6078), (0x606C,), (0x2002,)]
+    assert runs["simulated"] == [(0x6064, 0x6078), (0x606C, 0x2001), (0x2002,)]
+    assert np.array_equal(runs["named column"], scale * runs["simulated column"])
+    assert np.ptp(runs["simulated column"]) > 0
+
+
+@pytest.mark.parametrize(("address", "message"), [
+    ((0x2345, 0), r"0x2345:00 is not in the drive's EDS .*vendor_drive.eds"),
+    ((0x6075, 0), r"0x6075:00 \(Motor rated current\) is not PDO-mappable"),
+])
+def test_a_period_mean_object_the_drive_cannot_send_is_refused_before_anything_is_written(
+        can_config: BusConfig, tmp_path: Path, address: tuple[int, int], message: str) -> None:
+    (_, drives), = plan(ADDED_INERTIA)
+    vendor = vendor_file(tmp_path, ".eds")
+    requests = SdoRequests(1)
+    with SimStand(MOTOR, can_config, eds=vendor), \
+            can.Bus(interface=can_config.interface, channel=can_config.channel) as witness:
+        notifier = can.Notifier(witness, [requests], timeout=0.05)
+        try:
+            with StandBus(None, can_config, simulate=False, eds=vendor,
+                          heartbeat_period_s=CALM_HEARTBEAT_S) as bus, \
+                    pytest.raises(ProfileError, match=r"node 1: the motor profile's "
+                                  r"drive.current_mean_object " + message):
+                bus.setup([replace(drives[0], current_mean=address)], 0.001)
+        finally:
+            notifier.stop()
+    assert CCS_DOWNLOAD not in requests.commands  # nothing was written

@@ -6,6 +6,7 @@ identification where its held-out error is the smallest."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,7 @@ from stand.controller import ExperimentProfile, plan
 from stand.diagnosis import diagnose
 from stand.diagnosis.model import period_mean_current
 from stand.diagnosis.noise import UNEXPLAINED_FACTOR
-from stand.errors import RunFileError
+from stand.errors import ProfileError, RunFileError
 from stand.ident.identify import identify_run
 from stand.ident.supply import motor_supply
 from stand.importer import map_columns
@@ -24,7 +25,7 @@ from stand.physics.plant import MotorPlant
 from stand.physics.reducer import ReducerPlant
 from stand.physics.simulate import simulate_motor
 from stand.procedures import simulate_procedure
-from stand.profiles import load_motor
+from stand.profiles import load_motor, resolve
 from stand.runfile import CURRENT_MEAN_COLUMN, Run, parse_run, read_run, write_run
 from tests.bench.bench_ident_coverage import run_case
 from tests.bench.diagnose.benchmark import draw_case, simulate_case
@@ -165,3 +166,32 @@ def test_where_the_kick_is_a_large_share_of_the_period_the_interval_widens_to_ho
     case = run_case(3, 26, current_mean=True)
     assert case["current_input"] == CURRENT_MEAN_COLUMN
     assert case["error_rel"] < -0.03 and case["covered"]
+
+
+@pytest.mark.parametrize(("named", "address"), [("0x2002", (0x2002, 0)), ('"0x30D1:01"', (0x30D1, 1)),
+                                                 ('"30d1:0A"', (0x30D1, 10))])
+def test_a_motor_profile_names_its_drives_period_mean_current(
+        tmp_path: Path, named: str, address: tuple[int, int]) -> None:
+    """``drive.current_mean_object`` (an index, or "index:subindex" in hex) and its unit
+    reach the drive an experiment sets up; the drive's physics do not take them."""
+    shipped = resolve("crouzet_82800502", "motors").read_text()
+    path = tmp_path / "vendor_motor.yaml"
+    path.write_text(shipped.replace("drive:\n", f"drive:\n  current_mean_object: {named}\n"
+                                                 "  current_mean_unit_A: 0.001\n", 1))
+    experiment = ExperimentProfile(name="x", procedure="no_load", motor=str(path), repeats=1,
+                                   duration_s=0.1, period_s=0.001)
+    (_, (drive,)), = plan(experiment)
+    assert (drive.current_mean, drive.current_mean_unit_A) == (address, 0.001)
+    assert load_motor(path).drive_params() == load_motor("crouzet_82800502").drive_params()
+    (_, (shipped_drive,)), = plan(experiment.model_copy(update={"motor": "crouzet_82800502"}))
+    assert (shipped_drive.current_mean, shipped_drive.current_mean_unit_A) == (None, None)
+
+
+@pytest.mark.parametrize(("named", "message"), [
+    ("0x30D1:zz", r"drive.current_mean_object: .*index or 'index:subindex' in hex"),
+    (5, r"drive.current_mean_object: .*0x5 is outside"),
+])
+def test_a_period_mean_object_that_is_no_address_names_the_field(named: int | str,
+                                                                  message: str) -> None:
+    with pytest.raises(ProfileError, match=message):
+        load_motor("crouzet_82800502", {"drive": {"current_mean_object": named}})
