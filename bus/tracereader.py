@@ -140,10 +140,12 @@ def _mapped(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int
 
 
 def _tpdos(node: int, od: canopen.ObjectDictionary, sdo: Mapping[tuple[int, int], int],
-           seen: set[int]) -> Iterator[tuple[int, Layout]]:
+           seen: set[int], current_mean: tuple[int, int] | None = None
+           ) -> Iterator[tuple[int, Layout]]:
     """(COB-ID, layout) of each TPDO of ``node`` whose COB-ID occurs in the trace; where
-    neither the trace nor the EDS maps it, the mapping motorstand's master writes."""
-    standard = tpdo_objects(od)
+    neither the trace nor the EDS maps it, the mapping motorstand's master writes (with
+    the period-mean current object ``current_mean`` in TPDO3)."""
+    standard = tpdo_objects(od, current_mean=current_mean)
     for p, cob, entries in _mapped(node, od, sdo, seen, TPDO_COMM, TPDO_MAP, TPDO_BASES):
         if entries is None and p >= len(standard):
             continue
@@ -226,7 +228,8 @@ class DecodedTrace:
 
 def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
                  eds: str | Path | None = None, node: int | None = None,
-                 period_s: float | None = None) -> DecodedTrace:
+                 period_s: float | None = None,
+                 current_mean: tuple[int, int] | None = None) -> DecodedTrace:
     """The drive samples of a CAN trace (see the module docstring).
 
     Parameters
@@ -242,6 +245,11 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
         Decode this node only (default: every node with TPDOs in the trace).
     period_s : float, optional
         SYNC period, s, when the trace does not carry 0x1006.
+    current_mean : (int, int), optional
+        The drives' object (index, subindex) holding their current averaged over each
+        period (a motor profile's ``drive.current_mean_object``; its unit is
+        ``scaling.current_mean_unit_A``): decoded as ``current_mean_A``, and mapped into
+        TPDO3 where neither the trace nor the EDS maps it.
 
     Raises
     ------
@@ -275,7 +283,7 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     mapping_from: dict[int, str] = {}
     for n in nodes:
         od = load_od(eds, n)
-        found = list(_tpdos(n, od, sdo.get(n, {}), seen))
+        found = list(_tpdos(n, od, sdo.get(n, {}), seen, current_mean))
         if not found or any(cob in tpdos for cob, _ in found):
             continue
         target = next(_targets(n, od, sdo.get(n, {}), lengths), None)
@@ -322,7 +330,8 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     # stamp of the SYNC before it, and no synchronous window bounds the delay (a lockstep
     # run's stamps are wall time).
     sampler = Sampler(tpdos, node_ids, scalings, len(syncs), period, window_s=math.inf,
-                      targets=targets)
+                      targets=targets,
+                      current_means=[current_mean[0] if current_mean else None] * len(node_ids))
     k, stamp = -1, 0.0
     held: dict[int, int] = {}  # drive → the raw target of its last RPDO
     for msg in frames:

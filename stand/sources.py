@@ -42,7 +42,8 @@ class ReadOptions:
         CAN traces: which run columns to build from the drives' samples.
     motor : str or None
         CAN traces: motor profile (name or path) giving the encoder counts per revolution
-        and the rated current (default: the drives' 0x608F and 0x6075 in the trace).
+        and the rated current (default: the drives' 0x608F and 0x6075 in the trace), and
+        the drive's period-mean current object where it names one.
     eds : str or None
         CAN traces: the drives' EDS (default: the simulated drive's).
     node : int or None
@@ -117,9 +118,10 @@ def _trace(path: Path, options: ReadOptions) -> Source:
 
     if options.dbc:
         return Source(decode_dbc(path, options.dbc), {"dbc": options.dbc})
-    scaling = scaling_for(load_motor(options.motor)) if options.motor else None
-    decoded = decode_trace(path, scaling=scaling, eds=options.eds, node=options.node,
-                           period_s=options.period_s)
+    motor = load_motor(options.motor) if options.motor else None
+    decoded = decode_trace(path, scaling=scaling_for(motor) if motor else None, eds=options.eds,
+                           node=options.node, period_s=options.period_s,
+                           current_mean=motor.drive.current_mean() if motor else None)
     drives = len(decoded.samples.drives)
     if (options.kind == "reducer") != (drives == 2):
         raise InputError(f"{path}: the trace holds {drives} drive(s) with TPDOs "

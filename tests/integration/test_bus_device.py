@@ -19,8 +19,10 @@ from bus.eds import DEFAULT_EDS
 from bus.sim_device import SimIoDevice
 from bus.simstand import SimStand
 from bus.stand_bus import StandBus
+from stand.cli import main
 from stand.controller import ExperimentProfile, StandController, plan
 from stand.errors import DeviceMismatch, InputError, ProfileError
+from stand.profiles import resolve
 from stand.runfile import CURRENT_MEAN_COLUMN, read_run
 
 MOTOR = "crouzet_82800502"
@@ -194,6 +196,15 @@ def test_a_real_drive_maps_the_period_mean_current_its_motor_profile_names(
             runs[name] = [layout.indices for _, layout in bus.master.drives[0].tpdos]
         if name != "plain":
             runs[name + " column"] = _mean_currents(folder)
+    # its trace reads back with the motor profile that names the object (and its unit)
+    profile = tmp_path / "vendor_motor.yaml"
+    profile.write_text(resolve(MOTOR, "motors").read_text().replace(
+        "drive:\n", "drive:\n  current_mean_object: 0x2002\n"
+        + (f"  current_mean_unit_A: {unit}\n" if unit else ""), 1))
+    back = tmp_path / "back.csv"
+    assert main(["import", str(tmp_path / "named" / "no_load_1.log"), "-o", str(back),
+                 "--motor", str(profile), "--eds", str(vendor)]) == 0
+    assert np.array_equal(read_run(back)[CURRENT_MEAN_COLUMN], runs["named column"])
     assert runs["plain"] == [(0x6064, 0x6078), (0x606C,)]  # no TPDO3 on a real drive
     assert runs["named"] == [(0x6064, 0x6078), (0x606C,), (0x2002,)]
     assert runs["simulated"] == [(0x6064, 0x6078), (0x606C, 0x2001), (0x2002,)]
