@@ -33,6 +33,9 @@ FIELDS = {cia402.POSITION_ACTUAL: "position_rad", cia402.CURRENT_ACTUAL: "curren
           cia402.VELOCITY_ACTUAL: "velocity_rad_s", cia402.VOLTAGE_ACTUAL: "voltage_V",
           cia402.CURRENT_MEAN: "current_mean_A",
           cia402.STATUSWORD: "statusword"}
+#: Of those, the objects only the simulated drive has: on another drive the same index is
+#: the vendor's own object and is not read (unless named, ``current_means``).
+SIMULATION_OBJECTS = (cia402.VOLTAGE_ACTUAL, cia402.CURRENT_MEAN)
 #: RPDO target objects whose value a window keeps, and the field each fills: the target
 #: velocity of cyclic synchronous velocity mode, held from its SYNC to the next.
 TARGET_FIELDS = {cia402.TARGET_VELOCITY: "speed_target_rad_s"}
@@ -143,12 +146,16 @@ class Sampler:
         Each drive's object (index) holding its current averaged over each period, named
         by its motor profile, or None (the simulated drive's
         :data:`~bus.cia402.CURRENT_MEAN` is known anyway): it fills ``current_mean_A``.
+    simulated : sequence of bool
+        Whether each drive is the simulated one (default: all are): only then are its
+        :data:`SIMULATION_OBJECTS` read.
     """
 
     def __init__(self, tpdos: dict[int, tuple[int, int, Layout]], node_ids: Sequence[int],
                  scalings: Sequence[Scaling], samples: int, period_s: float,
                  window_s: float = 0.0, targets: Sequence[int | None] = (),
-                 current_means: Sequence[int | None] = ()) -> None:
+                 current_means: Sequence[int | None] = (),
+                 simulated: Sequence[bool] = ()) -> None:
         self.window_s = window_s
         self.tpdos = tpdos
         self.scalings = list(scalings)
@@ -157,9 +164,13 @@ class Sampler:
         pdos = [sum(1 for d, _, _ in tpdos.values() if d == n) for n in range(len(node_ids))]
         #: Object index → field, per drive.
         self.fields = [dict(FIELDS) for _ in node_ids]
-        for n, index in enumerate(current_means):
-            if index is not None:
-                self.fields[n][index] = "current_mean_A"
+        for n, ours in enumerate(simulated):
+            if not ours:
+                for own in SIMULATION_OBJECTS:
+                    del self.fields[n][own]
+        for n, named in enumerate(current_means):
+            if named is not None:
+                self.fields[n][named] = "current_mean_A"
         self.raw: list[dict[str, np.ndarray]] = []
         for n, fields in enumerate(self.fields):
             names = {fields[i] for c in tpdos.values() if c[0] == n for i in c[2].indices if i in fields}

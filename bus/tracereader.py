@@ -280,6 +280,7 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     rpdos: dict[int, tuple[int, int, Layout]] = {}  # COB-ID → (drive, field in the PDO, layout)
     targets: list[int | None] = []
     node_ids: list[int] = []
+    simulated: list[bool] = []  # the drive's EDS is the simulated drive's
     mapping_from: dict[int, str] = {}
     for n in nodes:
         od = load_od(eds, n)
@@ -298,6 +299,7 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
         for p, (cob, layout) in enumerate(found):
             tpdos[cob] = (len(node_ids), p, layout)
         node_ids.append(n)
+        simulated.append(_is_simulated_eds(od))
     if not node_ids:
         raise InputError(f"{path}: no TPDO of {'node ' + str(node) if node else 'any node'} "
                          f"in the trace (COB-IDs seen: {', '.join(f'0x{c:03X}' for c in sorted(seen))})")
@@ -331,7 +333,8 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     # run's stamps are wall time).
     sampler = Sampler(tpdos, node_ids, scalings, len(syncs), period, window_s=math.inf,
                       targets=targets,
-                      current_means=[current_mean[0] if current_mean else None] * len(node_ids))
+                      current_means=[current_mean[0] if current_mean else None] * len(node_ids),
+                      simulated=simulated)
     k, stamp = -1, 0.0
     held: dict[int, int] = {}  # drive → the raw target of its last RPDO
     for msg in frames:

@@ -205,6 +205,10 @@ def test_a_real_drive_maps_the_period_mean_current_its_motor_profile_names(
     assert main(["import", str(tmp_path / "named" / "no_load_1.log"), "-o", str(back),
                  "--motor", str(profile), "--eds", str(vendor)]) == 0
     assert np.array_equal(read_run(back)[CURRENT_MEAN_COLUMN], runs["named column"])
+    # without the profile, 0x2002 of this drive's EDS is the vendor's own object: not read
+    assert main(["import", str(tmp_path / "named" / "no_load_1.log"), "-o", str(back),
+                 "--eds", str(vendor)]) == 0
+    assert CURRENT_MEAN_COLUMN not in read_run(back)
     assert runs["plain"] == [(0x6064, 0x6078), (0x606C,)]  # no TPDO3 on a real drive
     assert runs["named"] == [(0x6064, 0x6078), (0x606C,), (0x2002,)]
     assert runs["simulated"] == [(0x6064, 0x6078), (0x606C, 0x2001), (0x2002,)]
