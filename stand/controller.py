@@ -141,7 +141,8 @@ class ExperimentResult:
         return all(r.complete for r in self.runs)
 
 
-def _drive(profile: MotorProfile, node_id: int, mode: str) -> DriveSetup:
+def drive_setup(profile: MotorProfile, node_id: int, mode: str) -> DriveSetup:
+    """The drive of ``profile``'s motor at ``node_id``, commanded in ``mode``."""
     counts = profile.sensor_params().counts_per_rev or FINE_COUNTS_PER_REV
     return DriveSetup(node_id, mode, counts, profile.drive.rated_current_A, limits=profile.limits,
                       current_mean=profile.drive.current_mean(),
@@ -167,8 +168,8 @@ def plan(experiment: ExperimentProfile) -> list[tuple[Procedure, list[DriveSetup
         stand = load_stand(e.stand)
         m_in, m_out = load_motor(stand.motor_in), load_motor(stand.motor_out)
         proc = efficiency_procedure(stand, m_in, e.load_current_A, e.duration_s, e.period_s)
-        runs.append((proc, [_drive(m_in, stand.node_in, proc.commands[0].mode),
-                            _drive(m_out, stand.node_out, proc.commands[1].mode)]))
+        runs.append((proc, [drive_setup(m_in, stand.node_in, proc.commands[0].mode),
+                            drive_setup(m_out, stand.node_out, proc.commands[1].mode)]))
     else:
         if not e.motor:
             raise ProfileError(f"experiment {e.name}: procedure {e.procedure} needs 'motor'")
@@ -187,7 +188,7 @@ def plan(experiment: ExperimentProfile) -> list[tuple[Procedure, list[DriveSetup
             pairs = {"torque_constant": [p for pair in zip(no_load, loaded, strict=True) for p in pair],
                      "no_load": no_load, "added_inertia": loaded}
             procs = pairs[e.procedure]
-        runs += [(p, [_drive(motor, motor.drive.node_id, p.commands[0].mode)]) for p in procs]
+        runs += [(p, [drive_setup(motor, motor.drive.node_id, p.commands[0].mode)]) for p in procs]
     for proc, drives in runs:
         check_limits(proc, drives)
     return runs

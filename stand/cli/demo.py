@@ -84,14 +84,12 @@ def _diagnosis_runs(out: Path, motor_name: str, period_s: float) -> list[Any]:
     """Two reversing band-limited speed runs over the bus: TRAIN and HOLDOUT."""
     from bus.adapters import BusConfig
     from bus.stand_bus import StandBus
-    from stand.controller import FINE_COUNTS_PER_REV, DriveSetup, StandController
+    from stand.controller import StandController, drive_setup
     from stand.procedures import PortCommand, Procedure, multisine
     from stand.profiles import load_motor
 
     motor = load_motor(motor_name)
-    drive = DriveSetup(motor.drive.node_id, "speed",
-                       motor.sensor_params().counts_per_rev or FINE_COUNTS_PER_REV,
-                       motor.drive.rated_current_A, limits=motor.limits)
+    drive = drive_setup(motor, motor.drive.node_id, "speed")
     samples = int(round(DIAGNOSIS_DURATION_S / period_s))
     records = []
     with StandBus(motor_name, BusConfig("virtual", DEMO_CHANNEL), seed=DIAGNOSIS_SEED,
