@@ -169,12 +169,14 @@ def test_a_trace_that_cannot_be_written_stops_the_run_and_not_the_bus(
 
 
 #: The reader of a trace on a FIFO (a stalled disk or network share) stops reading this
-#: often, for this long each time (s): longer than the PDO timeout below, so a stall of the
+#: often, for this long each time (s): well beyond the PDO timeout below, so a stall of the
 #: bus reader would lose windows; between stalls it takes this many bytes.
-TRACE_STALLS = 6
-TRACE_STALL_S = 0.6
+TRACE_STALLS = 4
+TRACE_STALL_S = 1.5
 TRACE_CHUNK = 16384
-STALL_PDO_TIMEOUT_S = 0.3
+#: PDO timeout of the run, s: far longer than scheduling on a loaded host holds the bus
+#: reader up (a 0.3 s timeout lost a window once in CI with the trace on its own thread).
+STALL_PDO_TIMEOUT_S = 1.0
 
 
 def test_a_stalled_trace_file_loses_no_sample(can_config: BusConfig, tmp_path: Path) -> None:
