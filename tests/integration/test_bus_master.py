@@ -14,8 +14,9 @@ import pytest
 
 from bus import cia402
 from bus.adapters import BusConfig
+from bus.master import STOP_RAMP_S
 from bus.stand_bus import StandBus
-from bus.sync import SyncCounter
+from bus.sync import SYNC_COB_ID, SyncCounter
 from stand.controller import ExperimentProfile, StandController, plan
 from stand.errors import BusTimeout, InputError
 
@@ -208,27 +209,43 @@ def test_a_stalled_trace_file_loses_no_sample(can_config: BusConfig, tmp_path: P
     assert syncs == windows
 
 
-#: An SDO timeout for the stop, shorter than the simulated stand takes to work through the
-#: stop cycles when they are all sent before it answers any (100 SYNCs of a 0.1 s ramp at
-#: 1 ms, each six TPDOs and a step of the plant: 0.3 s and more in a loaded User-Mode Linux
-#: guest), and far longer than one SDO answer takes, s.
-STOP_SDO_TIMEOUT_S = 0.1
+class FrameOrder(can.Listener):
+    """The COB-IDs of the 11-bit frames on the bus, in the order another participant hears
+    them."""
+
+    def __init__(self) -> None:
+        self.ids: list[int] = []
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if not msg.is_extended_id:
+            self.ids.append(msg.arbitration_id)
 
 
 def test_lockstep_stop_cycles_wait_for_the_drives_before_disabling_them(
         can_config: BusConfig, caplog: pytest.LogCaptureFixture) -> None:
     """A lockstep stop sends each stop SYNC once the drives answered the one before, as its
-    run does: the disable that follows is answered within an SDO timeout, and the drives
-    end switched off, not left in quick stop behind a queue of SYNCs."""
+    run does. Sent back to back, the SYNCs queued up before the simulated stand, and the
+    disable's SDO behind them timed out in a loaded User-Mode Linux guest, leaving the
+    drives in quick stop. Now every drive's last TPDO is on the bus between two stop
+    SYNCs, and the drives end switched off."""
+    order = FrameOrder()
     with StandBus(STAND, can_config, simulate=True, heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
         assert bus.sim is not None
         (procedure, drives), = plan(SHORT)
         bus.setup(drives, procedure.sample_period_s)
         bus.run(np.zeros((2, 50)))
-        for drive in bus.master.drives:
-            drive.node.sdo.RESPONSE_TIMEOUT = STOP_SDO_TIMEOUT_S
-        with caplog.at_level(logging.WARNING, logger="bus.master"):
-            bus.stop_drives()
+        answers = {cob_id for cob_id, _ in (d.tpdos[-1] for d in bus.master.drives)}
+        with can.Bus(interface=can_config.interface, channel=can_config.channel) as witness:
+            notifier = can.Notifier(witness, [order], timeout=0.05)
+            try:
+                with caplog.at_level(logging.WARNING, logger="bus.master"):
+                    bus.stop_drives()
+            finally:
+                notifier.stop()
         for node in bus.sim.nodes:
             assert node.sm.state is cia402.State.SWITCH_ON_DISABLED, node.id
+    syncs = [k for k, cob_id in enumerate(order.ids) if cob_id == SYNC_COB_ID]
+    assert len(syncs) == round(STOP_RAMP_S / procedure.sample_period_s)
+    for before, after in zip(syncs, syncs[1:], strict=False):
+        assert answers <= set(order.ids[before:after]), (before, after)
     assert not [r.getMessage() for r in caplog.records if "no SDO answer" in r.getMessage()]
