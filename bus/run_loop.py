@@ -66,8 +66,8 @@ class RunLoop:
         self.sampler = Sampler(self.tpdos, [d.id for d in drives], [d.config.scaling for d in drives],
                                self.n, master.period_s, self.window_s,
                                [cia402.TARGET_OBJECT[d.config.mode][0] for d in drives],
-                               [d.config.current_mean[0] if d.config.current_mean else None
-                                for d in drives], [d.simulated for d in drives])
+                               [d.config.current_mean for d in drives],
+                               [d.simulated for d in drives])
         self.echo = master.sync_echo and self.realtime
         counter = master.sync_counter
         kernel_period_s = master.period_s if master.kernel_sync and self.realtime else None

@@ -142,9 +142,9 @@ class Sampler:
     targets : sequence of int or None
         Each drive's RPDO target object (0x60FF, 0x6071, ...), or None; the windows keep
         the commanded value of those in :data:`TARGET_FIELDS`.
-    current_means : sequence of int or None
-        Each drive's object (index) holding its current averaged over each period, named
-        by its motor profile, or None (the simulated drive's
+    current_means : sequence of (int, int) or None
+        Each drive's object (index, subindex) holding its current averaged over each
+        period, named by its motor profile, or None (the simulated drive's
         :data:`~bus.cia402.CURRENT_MEAN` is known anyway): it fills ``current_mean_A``.
     simulated : sequence of bool
         Whether each drive is the simulated one (default: all are): only then are its
@@ -154,7 +154,7 @@ class Sampler:
     def __init__(self, tpdos: dict[int, tuple[int, int, Layout]], node_ids: Sequence[int],
                  scalings: Sequence[Scaling], samples: int, period_s: float,
                  window_s: float = 0.0, targets: Sequence[int | None] = (),
-                 current_means: Sequence[int | None] = (),
+                 current_means: Sequence[tuple[int, int] | None] = (),
                  simulated: Sequence[bool] = ()) -> None:
         self.window_s = window_s
         self.tpdos = tpdos
@@ -162,18 +162,18 @@ class Sampler:
         self.samples = samples
         self.period_s = period_s
         pdos = [sum(1 for d, _, _ in tpdos.values() if d == n) for n in range(len(node_ids))]
-        #: Object index → field, per drive.
-        self.fields = [dict(FIELDS) for _ in node_ids]
+        #: Object (index, subindex) → field, per drive.
+        self.fields = [{(index, 0): name for index, name in FIELDS.items()} for _ in node_ids]
         for n, ours in enumerate(simulated):
             if not ours:
                 for own in SIMULATION_OBJECTS:
-                    del self.fields[n][own]
+                    del self.fields[n][(own, 0)]
         for n, named in enumerate(current_means):
             if named is not None:
                 self.fields[n][named] = "current_mean_A"
         self.raw: list[dict[str, np.ndarray]] = []
         for n, fields in enumerate(self.fields):
-            names = {fields[i] for c in tpdos.values() if c[0] == n for i in c[2].indices if i in fields}
+            names = {fields[o] for c in tpdos.values() if c[0] == n for o in c[2].objects if o in fields}
             self.raw.append({name: np.full(samples, np.nan) for name in sorted(names)})
         #: Drive number → the field its commanded target fills.
         self.target_fields = {n: TARGET_FIELDS[index] for n, index in enumerate(targets)
@@ -195,7 +195,7 @@ class Sampler:
         self._arrived = 0
         self.complete = threading.Event()
         self._lock = threading.Lock()
-        self._plan = {cob: (d, p, layout, [self.fields[d].get(i) for i in layout.indices])
+        self._plan = {cob: (d, p, layout, [self.fields[d].get(o) for o in layout.objects])
                       for cob, (d, p, layout) in tpdos.items()}
 
     def open(self, k: int, wall_s: float, counter: int) -> None:

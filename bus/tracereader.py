@@ -333,7 +333,7 @@ def decode_trace(path: str | Path, *, scaling: Scaling | None = None,
     # run's stamps are wall time).
     sampler = Sampler(tpdos, node_ids, scalings, len(syncs), period, window_s=math.inf,
                       targets=targets,
-                      current_means=[current_mean[0] if current_mean else None] * len(node_ids),
+                      current_means=[current_mean] * len(node_ids),
                       simulated=simulated)
     k, stamp = -1, 0.0
     held: dict[int, int] = {}  # drive → the raw target of its last RPDO

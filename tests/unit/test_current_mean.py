@@ -6,11 +6,18 @@ identification where its held-out error is the smallest."""
 from __future__ import annotations
 
 import math
+import struct
+import time
 from pathlib import Path
 
+import canopen
 import numpy as np
 import pytest
+from canopen.objectdictionary import INTEGER32, UNSIGNED8, ODRecord, ODVariable
 
+from bus.eds import Scaling
+from bus.pdo import Layout, entries_for, entry
+from bus.sampler import Sampler
 from stand.controller import ExperimentProfile, plan
 from stand.diagnosis import diagnose
 from stand.diagnosis.model import period_mean_current
@@ -31,6 +38,8 @@ from tests.bench.bench_ident_coverage import run_case
 from tests.bench.diagnose.benchmark import draw_case, simulate_case
 
 MOTOR = MotorParams(R=2.0, L=1e-3, Kt=0.05, J=2e-5, D=4e-5)
+#: A vendor's record of current values and the TPDO (COB-ID) that carries it.
+VENDOR_RECORD, VENDOR_TPDO = 0x30D1, 0x381
 
 
 def _step_run(current_mean: bool, noise_A: float = 0.0, dt: float = 1e-3) -> Run:
@@ -195,3 +204,29 @@ def test_a_period_mean_object_that_is_no_address_names_the_field(named: int | st
                                                                   message: str) -> None:
     with pytest.raises(ProfileError, match=message):
         load_motor("crouzet_82800502", {"drive": {"current_mean_object": named}})
+
+
+def test_a_vendor_records_subindex_is_read_as_the_period_mean_and_its_neighbour_is_not() -> None:
+    """A vendor's record (as a drive's "current actual values" 0x30D1, sub 1 the period
+    mean, sub 2 the sample) mapped whole into one TPDO: the profile names sub 1, and only
+    sub 1 fills ``current_mean_A``, in the profile's unit."""
+    od = canopen.ObjectDictionary()
+    record = ODRecord("Current actual values", VENDOR_RECORD)
+    count = ODVariable("Highest sub-index supported", VENDOR_RECORD, 0)
+    count.data_type = UNSIGNED8
+    record.add_member(count)
+    for sub, name in ((1, "Current actual value averaged"), (2, "Current actual value")):
+        member = ODVariable(name, VENDOR_RECORD, sub)
+        member.data_type, member.pdo_mappable = INTEGER32, True
+        record.add_member(member)
+    od.add_object(record)
+    entries = entries_for(od, [(VENDOR_RECORD, 1), (VENDOR_RECORD, 2)])
+    assert entries == [entry(VENDOR_RECORD, 1, 32), entry(VENDOR_RECORD, 2, 32)]
+    sampler = Sampler({VENDOR_TPDO: (0, 0, Layout.from_entries(od, entries))}, [1],
+                      [Scaling(current_mean_unit_A=0.001)], samples=1, period_s=0.001,
+                      current_means=[(VENDOR_RECORD, 1)], simulated=[False])
+    sampler.open(0, 0.0, 1)
+    sampler.on_tpdo(VENDOR_TPDO, bytearray(struct.pack("<ii", 1500, -700)), time.time())
+    (drive,) = sampler.result(1).drives
+    assert list(drive.columns) == [CURRENT_MEAN_COLUMN]
+    assert drive.columns[CURRENT_MEAN_COLUMN].tolist() == [1.5]
