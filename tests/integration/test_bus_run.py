@@ -35,6 +35,10 @@ ONE_COUNT_RAD = 2 * math.pi / 10_000
 #: (each compared to one encoder count with the direct simulation). 25 was missed once
 #: (22 kept) with the host under the guest at load 11.
 MIN_KEPT = 10
+#: Real-time runs tried until one keeps those: a loaded host made the master late at the
+#: very start once (window 2, 1 of 3 samples kept before it); every run's kept samples are
+#: checked all the same.
+REALTIME_ATTEMPTS = 3
 #: Current travels in per mille of the 1 A rated current: 1 mA steps.
 CURRENT_QUANTUM_A = 1e-3
 
@@ -133,28 +137,36 @@ def test_realtime_samples_are_never_misattributed(can_config: BusConfig, tmp_pat
     kept is the one measured at its own SYNC, as the direct simulation proves."""
     experiment = ExperimentProfile(name="rt", procedure="efficiency", stand="cycloidal_two_motor",
                                    duration_s=1.5, period_s=0.015)
-    with StandBus("cycloidal_two_motor", can_config, simulate=True, seed=SEED,
-                  heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
-        record = StandController(bus, "realtime").run_experiment(experiment, tmp_path).runs[0]
-        late_targets = bus.master.late_target_windows
-    assert record.samples == 100 and record.aborted is None
-    # Where the kernel sends the SYNCs, a target the loaded master sent after its SYNC acted
-    # a SYNC late: the run says so, and from there on the stand did another experiment.
-    assert record.late_targets == len(late_targets)
-    assert not late_targets or not record.complete
-    first_late = late_targets[0] if late_targets else 100
     stand = load_stand("cycloidal_two_motor")
     (procedure, _), = plan(experiment)
     direct = simulate_stand_procedure(procedure, stand, load_motor(stand.motor_in),
                                       load_motor(stand.motor_out), seed=SEED)
-    text = Path(record.path).read_text().splitlines()  # type: ignore[arg-type]
-    header = text[0].split(",")
-    rows = np.array([[float(v) for v in line.split(",")] for line in text[1:]])
-    k = np.rint(rows[:, header.index("time_s")] / procedure.sample_period_s).astype(int)
-    rows, k = rows[k <= first_late], k[k <= first_late]  # a late target acts after sample k
-    # Under load (a one-CPU User-Mode Linux) answers miss their window and are dropped,
-    # counted; what must never happen is a kept sample from another SYNC.
-    assert len(k) >= min(MIN_KEPT, first_late), f"only {len(k)} of 100 samples kept: {record.lost}"
-    for column in ("position_in_rad", "position_out_rad"):
-        error = np.abs(rows[:, header.index(column)] - direct[column][k])
-        assert not len(error) or np.max(error) <= 1.01 * ONE_COUNT_RAD, column
+    kept: list[str] = []
+    for attempt in range(REALTIME_ATTEMPTS):
+        with StandBus("cycloidal_two_motor", can_config, simulate=True, seed=SEED,
+                      heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
+            record = StandController(bus, "realtime").run_experiment(
+                experiment, tmp_path / str(attempt)).runs[0]
+            late_targets = bus.master.late_target_windows
+        assert record.samples == 100 and record.aborted is None
+        # Where the kernel sends the SYNCs, a target the loaded master sent after its SYNC
+        # acted a SYNC late: the run says so, and from there on the stand did another
+        # experiment.
+        assert record.late_targets == len(late_targets)
+        assert not late_targets or not record.complete
+        first_late = late_targets[0] if late_targets else 100
+        text = Path(record.path).read_text().splitlines()  # type: ignore[arg-type]
+        header = text[0].split(",")
+        rows = np.array([[float(v) for v in line.split(",")] for line in text[1:]])
+        k = np.rint(rows[:, header.index("time_s")] / procedure.sample_period_s).astype(int)
+        rows, k = rows[k <= first_late], k[k <= first_late]  # a late target acts after sample k
+        # Under load (a one-CPU User-Mode Linux) answers miss their window and are dropped,
+        # counted; what must never happen is a kept sample from another SYNC: checked on
+        # every run.
+        for column in ("position_in_rad", "position_out_rad"):
+            error = np.abs(rows[:, header.index(column)] - direct[column][k])
+            assert not len(error) or np.max(error) <= 1.01 * ONE_COUNT_RAD, column
+        kept.append(f"{len(k)} kept before the first late target {first_late}, lost {record.lost}")
+        if len(k) >= min(MIN_KEPT, first_late):
+            return
+    pytest.fail(f"no run kept enough samples to check: {kept}")
