@@ -57,16 +57,16 @@ class Scaling:
         Unit of 0x606C / 0x60FF, rad/s.
     voltage_unit_V : float
         Unit of 0x2000 / 0x2001, V.
-    current_mean_unit_A : float
+    current_mean_unit_A : float or None
         Unit of the drive's current averaged over each period (column ``current_mean_A``),
-        A; 0: that of 0x6078, per mille of the rated current (the simulated drive's 0x2002).
+        A; None: that of 0x6078, per mille of the rated current (the simulated drive's 0x2002).
     """
 
     counts_per_rev: int = FINE_COUNTS_PER_REV
     rated_current_A: float = 1.0
     velocity_unit_rad_s: float = VELOCITY_UNIT_RAD_S
     voltage_unit_V: float = VOLTAGE_UNIT_V
-    current_mean_unit_A: float = 0.0
+    current_mean_unit_A: float | None = None
 
     @property
     def rad_per_count(self) -> float:
@@ -79,7 +79,7 @@ class Scaling:
     @property
     def mean_amp_per_unit(self) -> float:
         """A per count of the drive's period-mean current."""
-        return self.current_mean_unit_A or self.amp_per_unit
+        return self.amp_per_unit if self.current_mean_unit_A is None else self.current_mean_unit_A
 
     @property
     def rated_current_mA(self) -> int:

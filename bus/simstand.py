@@ -52,7 +52,7 @@ def scaling_for(profile: MotorProfile) -> Scaling:
     """Units of the raw process data of a drive running ``profile``'s motor."""
     return Scaling(counts_per_rev=profile.sensor_params().counts_per_rev or FINE_COUNTS_PER_REV,
                    rated_current_A=profile.drive.rated_current_A,
-                   current_mean_unit_A=profile.drive.current_mean_unit_A or 0.0)
+                   current_mean_unit_A=profile.drive.current_mean_unit_A)
 
 
 class SimStand:

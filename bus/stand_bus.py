@@ -70,7 +70,7 @@ class StandBus:
               trace_path: str | Path | None = None) -> None:
         configs = [DriveConfig(d.node_id, d.mode,
                                Scaling(d.counts_per_rev, d.rated_current_A,
-                                       current_mean_unit_A=d.current_mean_unit_A or 0.0),
+                                       current_mean_unit_A=d.current_mean_unit_A),
                                d.eds or self.eds, current_mean=d.current_mean)
                    for d in drives]
         self.master.setup(configs, period_s, added_inertia_kgm2, time_mode, trace_path)
