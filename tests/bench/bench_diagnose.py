@@ -23,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tests.bench.diagnose.benchmark import (  # noqa: E402
     CLASSES,
     MIN_EFFECT_SNR,
+    OUTSIDE_SETS,
     confusion_table,
     rescore,
     run_benchmark,
@@ -45,9 +46,10 @@ def main(argv: list[str] | None = None) -> int:
                         "again; 0 keeps every first draw, effects below the noise included)")
     parser.add_argument("--outside-share", type=float, default=0.0,
                         help="share of cases with one effect outside the vocabulary instead")
-    parser.add_argument("--outside-set", choices=("tuning", "held_out"), default="tuning",
+    parser.add_argument("--outside-set", choices=tuple(OUTSIDE_SETS), default="tuning",
                         help="which outside effects: those looked at in the design of the "
-                        "rule, or the set held out of all tuning")
+                        "rule, the set held out of all tuning, or the set written after "
+                        "every rule and never looked at (tests/bench/diagnose/outside.py)")
     parser.add_argument("--first", type=int, default=0, help="index of the first case")
     parser.add_argument("--classes", nargs="+", choices=CLASSES,
                         help="run only the cases of these classes among the --cases drawn "
