@@ -1,5 +1,6 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
-(tests/bench/diagnose/outside.py): the set written after every rule, UNSEEN."""
+(tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN and
+UNSEEN_2. No diagnosis runs here: UNSEEN_2 is only ever run to be reported."""
 
 from __future__ import annotations
 
@@ -9,7 +10,16 @@ import numpy as np
 import pytest
 
 from tests.bench.diagnose.benchmark import OUTSIDE_SETS, case_class, draw_case
-from tests.bench.diagnose.outside import UNSEEN, current_dead_band, dahl_friction, warming_drag
+from tests.bench.diagnose.outside import (
+    UNSEEN,
+    UNSEEN_2,
+    current_dead_band,
+    dahl_friction,
+    dragging_brake,
+    field_weakening,
+    rubbing_arc,
+    warming_drag,
+)
 
 #: Sub-step of the runs below, s (the simulator's is 0.1 ms at 1 kHz).
 H = 1e-4
@@ -62,15 +72,40 @@ def test_warming_drag_falls_over_each_run() -> None:
         [0.01, 0.0075, 0.00875])
 
 
-def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged() -> None:
+def test_field_weakening_takes_a_share_of_the_torque_growing_with_the_speed_up_to_twice() -> None:
+    torque = field_weakening({"Kt": 0.1, "gamma": 0.2, "omega_ref": 100.0}, 10.0)
+    assert [torque(0.0, w, 2.0, 0.0) for w in (0.0, -50.0, 100.0, 400.0)] == pytest.approx(
+        [0.0, 0.02, 0.04, 0.08])
+
+
+def test_the_brake_drags_until_its_release_in_every_run() -> None:
+    torque = dragging_brake({"T": 0.01, "t_release": 3.0, "eps": 0.1}, 10.0)
+    assert [torque(0.0, w, 0.0, t) for w, t in ((5.0, 1.0), (-5.0, 2.9), (5.0, 3.1),
+                                                 (5.0, 11.0))] == pytest.approx(
+        [0.01, -0.01, 0.0, 0.01], abs=1e-12)
+
+
+def test_the_rub_acts_over_its_arc_of_each_load_revolution() -> None:
+    r, arc = 4.0, 1.0
+    torque = rubbing_arc({"T": 0.01, "ratio": r, "phi": 0.0, "arc": arc, "eps": 0.1}, 10.0)
+    theta = np.linspace(0.0, 2 * math.pi * r, 100001)
+    rubbed = np.array([torque(x, 5.0, 0.0, 0.0) for x in theta]) > 0
+    assert np.mean(rubbed) == pytest.approx(arc / (2 * math.pi), abs=1e-3)
+    assert rubbed[0] and not rubbed[len(theta) // 2]
+
+
+@pytest.mark.parametrize("name", ["unseen", "unseen_2"])
+def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
+        name: str) -> None:
     seed, found = 291, set()
     for index in range(40):
         if case_class(index, seed, outside_share=0.3) != "outside":
             # the other cases are drawn as without the outside share
-            assert draw_case(index, seed, outside_share=0.3, outside_set="unseen", min_snr=0) \
+            assert draw_case(index, seed, outside_share=0.3, outside_set=name, min_snr=0) \
                 == draw_case(index, seed, min_snr=0)
             continue
-        case = draw_case(index, seed, outside_share=0.3, outside_set="unseen", min_snr=0)
+        case = draw_case(index, seed, outside_share=0.3, outside_set=name, min_snr=0)
         assert case.effects == {} and len(case.outside) == 1
         found |= set(case.outside)
-    assert found and found <= set(UNSEEN) and OUTSIDE_SETS["unseen"] is UNSEEN
+    assert found and found <= set(OUTSIDE_SETS[name])
+    assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2

@@ -38,7 +38,14 @@ from stand.physics.plant import MotorPlant
 from stand.physics.simulate import simulate_motor
 from stand.runfile import CURRENT_MEAN_COLUMN, Run, read_run, write_run
 from tests.bench.diagnose.oracle import ENGINE_TESTS, resolved_truth, visibility, visible_against_twin
-from tests.bench.diagnose.outside import HELD_OUT, OUTSIDE, UNSEEN, draw_outside, outside_torque
+from tests.bench.diagnose.outside import (
+    HELD_OUT,
+    OUTSIDE,
+    UNSEEN,
+    UNSEEN_2,
+    draw_outside,
+    outside_torque,
+)
 from tests.bench.diagnose.snr import added_snr, effect_snr
 
 #: Length of each of TRAIN and HOLDOUT, s.
@@ -94,7 +101,8 @@ class Case:
 
 
 #: The outside sets a benchmark can draw from (:mod:`tests.bench.diagnose.outside`).
-OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN}
+OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN,
+                "unseen_2": UNSEEN_2}
 
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
@@ -114,7 +122,7 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     so the other cases stay as without it) has one effect outside the vocabulary
     instead (:mod:`tests.bench.diagnose.outside`), of a strength in ``STRENGTH_RANGE``,
     drawn again like the others until it shows above the noise; ``outside_set`` names
-    the set it comes from (``tuning``, ``held_out`` or ``unseen``, :data:`OUTSIDE_SETS`)."""
+    the set it comes from (a key of :data:`OUTSIDE_SETS`)."""
     rng = np.random.default_rng([seed, index])
     stand = _draw_stand(index, seed, rng)
     side = np.random.default_rng([seed, index, 11])
@@ -174,7 +182,8 @@ def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
     for draw in range(1, EFFECT_DRAWS + 1):
         strength = _log_uniform(rng, *STRENGTH_RANGE)
         params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand), stand.current_ref,
-                              stand.omega_ref, strength, stand.motor.J, stand.dt_s)
+                              stand.omega_ref, strength, stand.motor.J, stand.dt_s,
+                              duration_s)
         case = replace(stand, outside={name: params}, truth=[f"outside:{name}"], draws=draw)
         case.snr = case_snr(case, duration_s)
         if case.snr >= min_snr:

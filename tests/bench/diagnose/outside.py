@@ -2,12 +2,14 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Three sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Four sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
-and position frictions are named in their notes); and :data:`UNSEEN`, written at stop
-58 before any result with it, and run once to be reported. Each torque opposes the
-motor (it is subtracted from the drive torque), N·m.
+and position frictions are named in their notes); :data:`UNSEEN`, written at stop
+58 before any result with it and run once to be reported (its result was then read);
+and :data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
+run only against the change. Each torque opposes the motor (it is subtracted from the
+drive torque), N·m.
 """
 
 from __future__ import annotations
@@ -152,6 +154,30 @@ def warming_drag(p: dict[str, float], duration_s: float) -> Torque:
     return lambda theta, omega, i, t: c * (1.0 - beta * (t % duration_s) / duration_s) * omega
 
 
+def field_weakening(p: dict[str, float], duration_s: float) -> Torque:
+    """A torque constant that falls with the speed (armature reaction, the drive's field
+    weakening): ``Kt·(1 − γ·min(|ω|/ω_ref, 2))``, the loss ``Kt·γ·min(|ω|/ω_ref, 2)·i``."""
+    kt, gamma, wref = p["Kt"], p["gamma"], p["omega_ref"]
+    return lambda theta, omega, i, t: kt * gamma * min(abs(omega) / wref, 2.0) * i
+
+
+def dragging_brake(p: dict[str, float], duration_s: float) -> Torque:
+    """A holding brake released late in each run: it drags with a dry friction ``T``
+    (``T·tanh(ω/ε)``) until ``t_release`` s into the run, then lets go."""
+    T, release, eps = p["T"], p["t_release"], p["eps"]
+    return lambda theta, omega, i, t: (T * math.tanh(omega / eps)
+                                       if t % duration_s < release else 0.0)
+
+
+def rubbing_arc(p: dict[str, float], duration_s: float) -> Torque:
+    """A seal or a brush that rubs over an arc of each revolution of a load behind a
+    reducer of ratio ``r``: a dry friction ``T`` while ``cos(θ/r + φ)`` is above
+    ``cos(arc/2)``, none elsewhere."""
+    T, r, phi, edge, eps = p["T"], p["ratio"], p["phi"], math.cos(p["arc"] / 2), p["eps"]
+    return lambda theta, omega, i, t: (T * math.tanh(omega / eps)
+                                       if math.cos(theta / r + phi) > edge else 0.0)
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -169,18 +195,24 @@ UNSEEN: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "dahl_friction": dahl_friction, "current_dead_band": current_dead_band,
     "warming_drag": warming_drag,
 }
+#: Written at stop 58 before any change made after :data:`UNSEEN`'s result.
+UNSEEN_2: dict[str, Callable[[dict[str, float], float], Torque]] = {
+    "field_weakening": field_weakening, "dragging_brake": dragging_brake,
+    "rubbing_arc": rubbing_arc,
+}
 #: Every outside effect by name.
-ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN}
+ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
                  current_ref: float, omega_ref: float, strength: float,
-                 J: float = 0.0, dt_s: float = 1e-3) -> dict[str, Any]:
+                 J: float = 0.0, dt_s: float = 1e-3, duration_s: float = 10.0
+                 ) -> dict[str, Any]:
     """Parameters of outside effect ``name`` whose torque is about ``strength`` times
     the run's typical drive torque ``torque_ref`` (N·m) at its typical current
     ``current_ref`` (A) and speed ``omega_ref`` (rad/s); an elastic load's inertia is
     ``10·strength`` times the motor's ``J`` (kg·m²), its resonance below a tenth of the
-    sample rate ``1/dt_s``."""
+    sample rate ``1/dt_s``; a brake lets go within the run's ``duration_s``."""
     if name == "fan_drag":
         return {"Cd": strength * torque_ref / omega_ref**2}
     if name == "kt_saturation":
@@ -210,6 +242,15 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
         return {"Kt": Kt, "delta": strength * current_ref}
     if name == "warming_drag":
         return {"c": strength * torque_ref / omega_ref, "beta": float(rng.uniform(0.3, 0.8))}
+    if name == "field_weakening":
+        return {"Kt": Kt, "gamma": strength, "omega_ref": omega_ref}
+    if name == "dragging_brake":
+        return {"T": strength * torque_ref, "t_release": float(rng.uniform(0.2, 0.6)) * duration_s,
+                "eps": 0.01 * omega_ref}
+    if name == "rubbing_arc":
+        return {"T": strength * torque_ref, "ratio": float(rng.uniform(2.2, 7.8)),
+                "phi": float(rng.uniform(0, 2 * math.pi)),
+                "arc": float(rng.uniform(0.3, 1.5)), "eps": 0.01 * omega_ref}
     raise KeyError(name)
 
 
