@@ -62,6 +62,7 @@ from stand.diagnosis.structure import (
     MAX_PHASE_SHARE,
     SPEED_SHAPES,
     along_travel_test,
+    shapes_test,
     structure_test,
 )
 from stand.diagnosis.where import locate
@@ -218,8 +219,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     residual_train = equation_residual(final.model, tr)
     noise = (current_noise(final.model, tr, residual_train),
              current_noise(final.model, ho, residual_final))
-    structure = structure_test(residual_train, tr, residual_final, ho, bench.seg.index,
-                               noise=noise)
+    structure = shapes_test(residual_train, tr, residual_final, ho, bench.seg.index,
+                            noise=noise)
     along = along_travel_test(residual_train, tr, residual_final, ho, bench.seg.index)
     speed = (structure_test(residual_train, tr, residual_final, ho, bench.seg.index,
                             SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True,
@@ -295,7 +296,7 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
         return []
     shapes = (f"a torque growing with the speed beyond a friction level and a slope "
               f"p = {speed.p_value:.2g} (shrink of the equation error {speed.shrink:.2f})"
-              if speed else f"speed, current-level and time shapes p = {p_shapes:.2g}")
+              if speed else f"speed, current-level, time and drift shapes p = {p_shapes:.2g}")
     return [f"the gap left ({verdict_gap:.2f} %, noise {noise_gap:.2f} %) is "
             f"{'within what the effects approximate' if speed else 'small'}, but its "
             f"equation error holds a shape no noise makes"

@@ -98,8 +98,9 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
     model's ``nominal_gap`` when none is ``named``) is ``unexplained``.
 
     ``p_shapes`` and ``p_along`` are the p-values of the two tests of what the effects
-    leave (:func:`stand.diagnosis.structure.structure_test`: speed, current-level and
-    time shapes; :func:`~stand.diagnosis.structure.along_travel_test`: a friction level or
+    leave (:func:`stand.diagnosis.structure.shapes_test`: speed, current-level and
+    time shapes, and the drift of a drag or friction level over the run;
+    :func:`~stand.diagnosis.structure.along_travel_test`: a friction level or
     torque varying along the travel, ``along_shrink`` its shrink of HOLDOUT's equation
     error, which counts, as a candidate effect's does, from ``MIN_SHRINK``). ``p_speed``
     and ``speed_shrink`` are those of the speed shapes alone beside a dry friction level,

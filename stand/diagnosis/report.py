@@ -153,8 +153,9 @@ class Diagnosis(JsonResult):
         run), %; a gap above ``UNEXPLAINED_FACTOR`` times it is beyond noise.
     structure_p_value : float or None
         p-value of the test for structure beyond noise in what the verdict's effects
-        leave (:func:`stand.diagnosis.structure.structure_test`): shapes no vocabulary
-        effect makes, fitted on TRAIN, predicting HOLDOUT's equation error.
+        leave (:func:`stand.diagnosis.structure.shapes_test`): shapes no vocabulary
+        effect makes, fitted on TRAIN, predicting HOLDOUT's equation error (two
+        families, the smaller p-value doubled).
     position_structure_p_value : float or None
         The same test with the position shapes alone (a dry friction whose level changes
         along the travel).

@@ -38,13 +38,23 @@ the coefficients far on a noise variance read off the samples, and what it takes
 of HOLDOUT grows with them (an effect-free current sine read p 8e-57 corrected, 1
 plain).
 
+A second family of shapes (:data:`DRIFT_SHAPES`) is tested apart, and the two p-values
+combined (Bonferroni, :func:`shapes_test`): a viscous drag and a dry friction level that
+drift over the run as the stand warms, ``ω·t`` and ``sign(ω)·t``, as ``i·t`` is the
+torque constant's drift. Tested among the first family's columns they would cost those
+some of their power (more columns fitted to TRAIN's noise), and the first family theirs.
+
 Nothing here is tuned to benchmark cases: the shapes are physics, the threshold is the
 diagnosis' own family-wise level (:data:`stand.diagnosis.significance.FAMILY_ALPHA`).
+The drift shapes were added after an outside effect the benchmark had not shown before,
+a lubricant's drag that thins over the run, was called ``none`` 7 times in 25
+(docs/results/diagnose.md); they were then checked on a set of outside effects written
+before they were (``--outside-set unseen_2``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,13 +62,16 @@ from stand.diagnosis import kicks
 from stand.diagnosis.current_noise import CurrentNoise
 from stand.diagnosis.model import kick_basis, supply_basis, supply_classes
 from stand.diagnosis.signals import Signals
-from stand.diagnosis.significance import FAMILY_ALPHA, PairedTest, paired_improvement
+from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK, PairedTest, paired_improvement
 from stand.errors import InputError
 
 #: The shapes tested, by name (see the module docstring). Position enters through
 #: :func:`along_travel_test` instead: a polynomial in the position over TRAIN's travel
 #: extrapolates wildly on a HOLDOUT that goes further.
 SHAPES: tuple[str, ...] = ("omega_abs_omega", "omega_cubed", "i_abs_i", "i_cubed", "i_time")
+#: The drift shapes, tested apart from :data:`SHAPES` (:func:`shapes_test`): a viscous
+#: drag and a dry friction level changing over the run.
+DRIFT_SHAPES: tuple[str, ...] = ("omega_time", "dry_friction_time")
 #: Columns fitted beside them and kept in the null model.
 NUISANCE: tuple[str, ...] = ("constant", "current", "omega", "current_rate", "jerk")
 #: The speed shapes alone: what a torque that grows with the speed other than linearly
@@ -144,6 +157,7 @@ def columns(sig: Signals, scales: _Scales, names: tuple[str, ...]) -> np.ndarray
         "omega_abs_omega": lambda: w * np.abs(w), "omega_cubed": lambda: w**3,
         "time": lambda: tau, "time_squared": lambda: tau * tau - 1 / 12,
         "i_abs_i": lambda: i * np.abs(i), "i_cubed": lambda: i**3, "i_time": lambda: i * tau,
+        "omega_time": lambda: w * tau, "dry_friction_time": lambda: np.sign(sig.omega_f) * tau,
         "constant": lambda: np.ones(len(sig)), "current": lambda: i, "omega": lambda: w,
         "dry_friction": lambda: np.sign(sig.omega_f),
         "current_rate": lambda: np.gradient(i, sig.dt_s) * sig.dt_s,
@@ -306,7 +320,7 @@ def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout:
     index : ndarray
         HOLDOUT's segments (segments × samples), as the diagnosis scores them.
     shapes : tuple of str
-        The shapes tested (:data:`SHAPES` or a part of them).
+        The shapes tested (a part of :data:`SHAPES` or of :data:`DRIFT_SHAPES`).
     nuisance : tuple of str
         The columns fitted beside them and kept in the null model (:data:`NUISANCE`, or
         :data:`AFTER_NAMED_NUISANCE` after named effects).
@@ -326,9 +340,10 @@ def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout:
     """
     scales = _scales(train)
     usable = np.unique(index.ravel())
-    unknown = sorted(set(shapes) - set(SHAPES))
+    unknown = sorted(set(shapes) - set(SHAPES) - set(DRIFT_SHAPES))
     if unknown or not shapes:
-        raise InputError(f"shapes must be a non-empty subset of {SHAPES}, got {shapes}")
+        raise InputError(f"shapes must be a non-empty subset of {SHAPES} or of "
+                         f"{DRIFT_SHAPES}, got {shapes}")
     x_tr, x_ho = (np.column_stack([columns(sig, scales, nuisance),
                                    columns(sig, scales, tuple(shapes))])
                   for sig in (train, holdout))
@@ -387,6 +402,35 @@ def structure_test(residual_train: np.ndarray, train: Signals, residual_holdout:
         plain = structure_test(given[0], train, given[1], holdout, index, shapes, nuisance,
                                steady_current).test
         test = max(test, plain, key=lambda t: t.p_value)
+    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
+
+
+def shapes_test(residual_train: np.ndarray, train: Signals, residual_holdout: np.ndarray,
+                holdout: Signals, index: np.ndarray,
+                noise: tuple[CurrentNoise | None, CurrentNoise | None] = (None, None),
+                ) -> StructureTest:
+    """:func:`structure_test` of :data:`SHAPES` and of :data:`DRIFT_SHAPES`, apart, as one
+    test: the one of the smaller p-value, that p-value doubled (Bonferroni).
+
+    The drift shapes count only where they shrink HOLDOUT's equation error by the
+    diagnosis' least shrink that counts (:data:`~stand.diagnosis.significance.MIN_SHRINK`;
+    their p-value is 1 otherwise), as a candidate effect must: the paired test holds
+    noise, not the nominal model's own small structural error, whose slow modulation over
+    a long run of one frequency a shape of time takes a little of (benchmark seed 290
+    case 64, effect-free, a current sine: the drift shapes p 5e-8 at a shrink of 0.012).
+    The first family is not held to it: the re-identified model hides most of the
+    effects its shapes stand for, so a real one can leave a small shrink (seed 260 case
+    199, a fan drag within the noise gap: p 2e-13 below that shrink; held to it, 3 of 120
+    outside cases of seeds 260 and 289 went from ``unexplained`` to ``none``, against 2
+    of 79 effect-free runs from ``unexplained`` to ``none``)."""
+    first, drift = (structure_test(residual_train, train, residual_holdout, holdout, index,
+                                   family, noise=noise).test
+                    for family in (SHAPES, DRIFT_SHAPES))
+    if drift.shrink < MIN_SHRINK:
+        drift = replace(drift, p_value=1.0)
+    tests = (first, drift)
+    best = min(tests, key=lambda t: t.p_value)
+    test = replace(best, p_value=min(1.0, len(tests) * best.p_value))
     return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
 
 
@@ -555,6 +599,7 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
                          phase_share=share)
 
 
-__all__ = ["AFTER_NAMED_NUISANCE", "MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES",
+__all__ = ["AFTER_NAMED_NUISANCE", "DRIFT_SHAPES", "MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER",
+           "NUISANCE", "SHAPES",
            "SPEED_SHAPES", "TRAVEL_NUISANCE", "StructureTest", "steady_samples",
            "along_travel_test", "columns", "phase_share", "phase_terms", "structure_test"]
