@@ -47,7 +47,7 @@ some of their power (more columns fitted to TRAIN's noise), and the first family
 Nothing here is tuned to benchmark cases: the shapes are physics, the threshold is the
 diagnosis' own family-wise level (:data:`stand.diagnosis.significance.FAMILY_ALPHA`).
 The drift shapes were added after an outside effect the benchmark had not shown before,
-a lubricant's drag that thins over the run, was called ``none`` 7 times in 25
+a lubricant's drag that thins over the run, was called ``none`` 8 times in 25
 (docs/results/diagnose.md); they were then checked on a set of outside effects written
 before they were (``--outside-set unseen_2``).
 """
