@@ -190,7 +190,8 @@ HELD_OUT: dict[str, Callable[[dict[str, float], float], Torque]] = {
     # added with issue 21's structure tests, before any result with them was seen
     "eddy_brake": eddy_brake, "mesh_friction": mesh_friction,
 }
-#: Written at stop 58, after every rule it is run against, and run once to be reported.
+#: Written at stop 58 before any result with it; its result was read, and the drift
+#: shapes of :mod:`stand.diagnosis.structure` were made after it.
 UNSEEN: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "dahl_friction": dahl_friction, "current_dead_band": current_dead_band,
     "warming_drag": warming_drag,
