@@ -183,7 +183,7 @@ def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
         strength = _log_uniform(rng, *STRENGTH_RANGE)
         params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand), stand.current_ref,
                               stand.omega_ref, strength, stand.motor.J, stand.dt_s,
-                              duration_s)
+                              duration_s=duration_s)
         case = replace(stand, outside={name: params}, truth=[f"outside:{name}"], draws=draw)
         case.snr = case_snr(case, duration_s)
         if case.snr >= min_snr:

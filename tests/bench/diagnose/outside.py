@@ -207,7 +207,7 @@ ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2}
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
                  current_ref: float, omega_ref: float, strength: float,
-                 J: float = 0.0, dt_s: float = 1e-3, duration_s: float = 10.0
+                 J: float = 0.0, dt_s: float = 1e-3, *, duration_s: float
                  ) -> dict[str, Any]:
     """Parameters of outside effect ``name`` whose torque is about ``strength`` times
     the run's typical drive torque ``torque_ref`` (N·m) at its typical current
