@@ -1,6 +1,7 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
-(tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN and
-UNSEEN_2. No diagnosis runs here: UNSEEN_2 is only ever run to be reported."""
+(tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
+UNSEEN_2 and UNSEEN_3. No diagnosis runs here: UNSEEN_2 and UNSEEN_3 are only ever run to
+be reported."""
 
 from __future__ import annotations
 
@@ -13,12 +14,16 @@ from tests.bench.diagnose.benchmark import OUTSIDE_SETS, case_class, draw_case
 from tests.bench.diagnose.outside import (
     UNSEEN,
     UNSEEN_2,
+    UNSEEN_3,
+    cable_windup,
     current_dead_band,
     dahl_friction,
     dragging_brake,
     field_weakening,
     rubbing_arc,
+    sense_asymmetry,
     warming_drag,
+    winding_heating,
 )
 
 #: Sub-step of the runs below, s (the simulator's is 0.1 ms at 1 kHz).
@@ -94,7 +99,48 @@ def test_the_rub_acts_over_its_arc_of_each_load_revolution() -> None:
     assert rubbed[0] and not rubbed[len(theta) // 2]
 
 
-@pytest.mark.parametrize("name", ["unseen", "unseen_2"])
+def test_the_winding_warms_towards_its_currents_steady_rise_and_starts_each_run_cold() -> None:
+    kt, kappa, iref, tau = 0.1, 0.2, 2.0, 1.0
+    torque = winding_heating({"Kt": kt, "kappa": kappa, "i_ref": iref, "tau": tau}, 10.0)
+    t = 0.0
+    for _ in range(int(round(0.5 / H))):  # 0.5 s at 2.5 A: the rise heads for 1.5625
+        t += H
+        loss = torque(0.0, 5.0, 2.5, t)
+    rise = 1.5625 * (1 - math.exp(-(t - H) / tau))  # from the first call on
+    assert loss == pytest.approx(kt * kappa * rise * 2.5, rel=1e-6)
+    # at no current it cools with τ, and carries no loss
+    for _ in range(int(round(1.0 / H))):
+        t += H
+        assert torque(0.0, 5.0, 0.0, t) == 0.0
+    assert torque(0.0, 5.0, 1e-9, t + H) == pytest.approx(
+        kt * kappa * rise * math.exp(-(1.0 + H) / tau) * 1e-9, rel=1e-4)
+    # a new run: time starts again, the winding cold
+    assert torque(0.0, 5.0, 4.0, H) == pytest.approx(0.0, abs=1e-12)
+    # beyond twice the rise of i_ref the loss is held there
+    for _ in range(int(round(3.0 / H))):  # 3 s at 4 A: the rise heads for (4/2)² = 4
+        t += H
+        loss = torque(0.0, 5.0, 4.0, t)
+    assert loss == pytest.approx(kt * kappa * 2.0 * 4.0, rel=1e-9)
+
+
+def test_the_asymmetric_sensor_loses_a_share_of_the_positive_current_only() -> None:
+    torque = sense_asymmetry({"Kt": 0.1, "eps": 0.25}, 10.0)
+    assert [torque(0.0, w, i, 0.0) for w, i in ((5.0, 2.0), (-5.0, 2.0), (5.0, -2.0))] \
+        == pytest.approx([0.1 * 2.0 * 0.2, 0.1 * 2.0 * 0.2, 0.0])
+
+
+def test_the_cable_tightens_with_the_net_travel_from_where_each_run_started() -> None:
+    torque = cable_windup({"T": 0.01, "theta_s": 10.0}, 10.0)
+    assert torque(100.0, 5.0, 0.0, 0.0) == 0.0  # the run starts at 100 rad, slack
+    assert torque(110.0, 5.0, 0.0, 1.0) == pytest.approx(0.01 * math.tanh(1.0))
+    assert torque(90.0, 5.0, 0.0, 2.0) == pytest.approx(-0.01 * math.tanh(1.0))
+    # the travel counts, not the time: back at the start it is slack again
+    assert torque(100.0, -5.0, 0.0, 3.0) == 0.0
+    # a new run starts slack wherever the shaft is
+    assert torque(200.0, 5.0, 0.0, 0.5) == 0.0
+
+
+@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -109,3 +155,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
         found |= set(case.outside)
     assert found and found <= set(OUTSIDE_SETS[name])
     assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2
+    assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3

@@ -2,14 +2,15 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Four sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Five sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
 58 before any result with it and run once to be reported (its result was then read);
-and :data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
-run only against the change. Each torque opposes the motor (it is subtracted from the
-drive torque), N·m.
+:data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
+run only against the change; and :data:`UNSEEN_3`, written at stop 59 before any change
+made at that stop, and run once with main and once with the change. Each torque opposes
+the motor (it is subtracted from the drive torque), N·m.
 """
 
 from __future__ import annotations
@@ -178,6 +179,55 @@ def rubbing_arc(p: dict[str, float], duration_s: float) -> Torque:
                                        if math.cos(theta / r + phi) > edge else 0.0)
 
 
+def winding_heating(p: dict[str, float], duration_s: float) -> Torque:
+    """A torque constant that falls as the winding warms with its own copper losses:
+    the winding's temperature rise ``Θ`` (1 at the steady rise of a current ``i_ref``)
+    follows ``τ·dΘ/dt = (i/i_ref)² − Θ`` from cold at the start of each run, and the
+    loss is ``Kt·κ·min(Θ, 2)·i`` (beyond twice the rise of ``i_ref`` the drive derates:
+    without a bound a speed loop's current and the rise run away). Unlike a drift in
+    time the constant falls faster where the current is high, and it recovers where the
+    current is low. Integrated exactly for the current held over each sub-step."""
+    kt, kappa, iref, tau = p["Kt"], p["kappa"], p["i_ref"], p["tau"]
+    state = {"t": -1.0, "rise": 0.0, "started": 0.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if not state["started"] or t < state["t"]:  # a new run: the winding cold
+            state.update(t=t, rise=0.0, started=1.0)
+        h = t - state["t"]
+        state["t"] = t
+        steady = (i / iref) ** 2
+        state["rise"] = steady + (state["rise"] - steady) * math.exp(-h / tau)
+        return kt * kappa * min(state["rise"], 2.0) * i
+
+    return torque
+
+
+def sense_asymmetry(p: dict[str, float], duration_s: float) -> Torque:
+    """A current sensor whose gain differs by the current's direction (two shunts or two
+    amplifier paths): it reads a positive current ``1 + ε`` times too high, so the drive
+    delivers ``i/(1 + ε)`` for a recorded positive ``i`` and ``i`` for a negative one;
+    the loss ``Kt·ε/(1 + ε)·max(i, 0)``."""
+    kt, eps = p["Kt"], p["eps"]
+    return lambda theta, omega, i, t: kt * eps / (1.0 + eps) * max(i, 0.0)
+
+
+def cable_windup(p: dict[str, float], duration_s: float) -> Torque:
+    """A cable or a hose to something on the shaft (no slip ring), wound up as the shaft
+    turns away from where the run started: ``T·tanh((θ − θ₀)/θ_s)``, a spring that
+    tightens over ``θ_s`` rad and then drags at ``T``. Not periodic in the position, and
+    it follows the net travel, not the time."""
+    T, scale = p["T"], p["theta_s"]
+    state = {"t": -1.0, "theta0": 0.0, "started": 0.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if not state["started"] or t < state["t"]:  # a new run: the cable slack
+            state.update(theta0=theta, started=1.0)
+        state["t"] = t
+        return T * math.tanh((theta - state["theta0"]) / scale)
+
+    return torque
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -201,8 +251,13 @@ UNSEEN_2: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "field_weakening": field_weakening, "dragging_brake": dragging_brake,
     "rubbing_arc": rubbing_arc,
 }
+#: Written at stop 59 before any change made at that stop.
+UNSEEN_3: dict[str, Callable[[dict[str, float], float], Torque]] = {
+    "winding_heating": winding_heating, "sense_asymmetry": sense_asymmetry,
+    "cable_windup": cable_windup,
+}
 #: Every outside effect by name.
-ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2}
+ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -213,7 +268,8 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
     the run's typical drive torque ``torque_ref`` (N·m) at its typical current
     ``current_ref`` (A) and speed ``omega_ref`` (rad/s); an elastic load's inertia is
     ``10·strength`` times the motor's ``J`` (kg·m²), its resonance below a tenth of the
-    sample rate ``1/dt_s``; a brake lets go within the run's ``duration_s``."""
+    sample rate ``1/dt_s``; a brake lets go within the run's ``duration_s``, and a
+    winding warms over a time of the order of it."""
     if name == "fan_drag":
         return {"Cd": strength * torque_ref / omega_ref**2}
     if name == "kt_saturation":
@@ -252,6 +308,13 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
         return {"T": strength * torque_ref, "ratio": float(rng.uniform(2.2, 7.8)),
                 "phi": float(rng.uniform(0, 2 * math.pi)),
                 "arc": float(rng.uniform(0.3, 1.5)), "eps": 0.01 * omega_ref}
+    if name == "winding_heating":
+        return {"Kt": Kt, "kappa": strength, "i_ref": current_ref,
+                "tau": _log_uniform(rng, 0.2, 2.0) * duration_s}
+    if name == "sense_asymmetry":
+        return {"Kt": Kt, "eps": 2 * strength}
+    if name == "cable_windup":
+        return {"T": strength * torque_ref, "theta_s": omega_ref * _log_uniform(rng, 0.3, 3.0)}
     raise KeyError(name)
 
 
