@@ -99,7 +99,8 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
 
     ``p_shapes`` and ``p_along`` are the p-values of the two tests of what the effects
     leave (:func:`stand.diagnosis.structure.shapes_test`: speed, current-level and
-    time shapes, and the drift of a drag or friction level over the run;
+    time shapes, the drift of a drag or friction level over the run, and torques of
+    the current and the speed together;
     :func:`~stand.diagnosis.structure.along_travel_test`: a friction level or
     torque varying along the travel, ``along_shrink`` its shrink of HOLDOUT's equation
     error, which counts, as a candidate effect's does, from ``MIN_SHRINK``). ``p_speed``

@@ -154,8 +154,8 @@ class Diagnosis(JsonResult):
     structure_p_value : float or None
         p-value of the test for structure beyond noise in what the verdict's effects
         leave (:func:`stand.diagnosis.structure.shapes_test`): shapes no vocabulary
-        effect makes, fitted on TRAIN, predicting HOLDOUT's equation error (two
-        families, the smaller p-value doubled).
+        effect makes, fitted on TRAIN, predicting HOLDOUT's equation error (three
+        families, the smallest p-value tripled).
     position_structure_p_value : float or None
         The same test with the position shapes alone (a dry friction whose level changes
         along the travel).

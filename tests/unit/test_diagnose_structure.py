@@ -21,7 +21,9 @@ from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
 from stand.diagnosis.simulate import segments
 from stand.diagnosis.structure import (
+    COUPLED_SHAPES,
     DRIFT_SHAPES,
+    FAMILIES,
     SHAPES,
     _Leak,
     _predictor,
@@ -99,9 +101,39 @@ def test_a_drag_that_drifts_over_the_run_is_structure_of_its_own_family(
     e_tr, e_ho = planted(tr), planted(ho)
     drift = structure_test(e_tr, tr, e_ho, ho, index, DRIFT_SHAPES).test
     both = shapes_test(e_tr, tr, e_ho, ho, index)
-    assert both.significant and both.test.p_value == pytest.approx(min(1.0, 2 * drift.p_value))
+    assert both.significant and both.test.p_value == pytest.approx(
+        min(1.0, len(FAMILIES) * drift.p_value))
     # the first family alone does not see it
     assert not structure_test(e_tr, tr, e_ho, ho, index).significant
+
+
+def test_a_torque_constant_falling_with_the_speed_is_structure_of_the_coupled_family(
+        runs: tuple[Signals, Signals, np.ndarray]) -> None:
+    tr, ho, index = runs
+    rng = np.random.default_rng(9)
+
+    def planted(sig: Signals) -> np.ndarray:
+        # field weakening: a loss Kt·γ·|ω|/ω_ref·i, its mean share taken by the model's Kt
+        w = sig.omega_f / np.sqrt(np.mean(tr.omega_f**2))
+        i = sig.filt(sig.current) / np.sqrt(np.mean(tr.current**2))
+        return 3.0 * i * np.abs(w) + _coloured(rng, len(sig))
+
+    e_tr, e_ho = planted(tr), planted(ho)
+    coupled = structure_test(e_tr, tr, e_ho, ho, index, COUPLED_SHAPES).test
+    both = shapes_test(e_tr, tr, e_ho, ho, index)
+    assert both.significant and both.test.p_value == pytest.approx(
+        min(1.0, len(FAMILIES) * coupled.p_value))
+    # neither of the other families sees it
+    assert not structure_test(e_tr, tr, e_ho, ho, index).significant
+    assert not structure_test(e_tr, tr, e_ho, ho, index, DRIFT_SHAPES).significant
+
+
+def test_shapes_of_two_families_are_refused_as_one_test(
+        runs: tuple[Signals, Signals, np.ndarray]) -> None:
+    tr, ho, index = runs
+    e = np.zeros(len(tr))
+    with pytest.raises(InputError, match="subset of one of"):
+        structure_test(e, tr, e, ho, index, ("omega_cubed", "i_abs_omega"))
 
 
 def test_a_torque_along_the_travel_is_found_at_an_order_below_one(
