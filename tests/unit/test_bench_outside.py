@@ -1,7 +1,7 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
 (tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
-UNSEEN_2 and UNSEEN_3. No diagnosis runs here: UNSEEN_2 and UNSEEN_3 are only ever run to
-be reported."""
+UNSEEN_2, UNSEEN_3 and UNSEEN_4. No diagnosis runs here: the last three are only ever run
+to be reported."""
 
 from __future__ import annotations
 
@@ -15,13 +15,19 @@ from tests.bench.diagnose.outside import (
     UNSEEN,
     UNSEEN_2,
     UNSEEN_3,
+    UNSEEN_4,
     cable_windup,
     current_dead_band,
     dahl_friction,
     dragging_brake,
+    draw_outside,
     field_weakening,
+    mesh_ripple,
+    offset_drift,
+    power_law_drag,
     rubbing_arc,
     sense_asymmetry,
+    shaft_rub,
     warming_drag,
     winding_heating,
 )
@@ -140,7 +146,41 @@ def test_the_cable_tightens_with_the_net_travel_from_where_each_run_started() ->
     assert torque(200.0, 5.0, 0.0, 0.5) == 0.0
 
 
-@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3"])
+def test_the_power_law_drag_grows_between_a_dry_and_a_viscous_one() -> None:
+    torque = power_law_drag({"T": 0.01, "omega_ref": 100.0, "delta": 0.5, "eps": 1e-6}, 10.0)
+    assert [torque(0.0, w, 0.0, 0.0) for w in (25.0, 100.0, -400.0)] == pytest.approx(
+        [0.005, 0.01, -0.02])
+
+
+def test_the_bent_shaft_rubs_once_a_motor_revolution_against_the_motion() -> None:
+    torque = shaft_rub({"Tc": 0.01, "phi": 0.0, "eps": 1e-6}, 10.0)
+    angles = (math.pi / 2, 3 * math.pi / 2, 2 * math.pi + math.pi / 2)
+    assert [torque(x, 5.0, 0.0, 0.0) for x in angles] == pytest.approx([0.01, 0.0, 0.01])
+    assert torque(0.0, -5.0, 0.0, 0.0) == pytest.approx(-0.005)
+
+
+def test_the_mesh_ripple_repeats_at_its_order_whatever_the_speed() -> None:
+    order = 17 / 4.3
+    torque = mesh_ripple({"T": 0.01, "order": order, "phi": 0.3}, 10.0)
+    assert torque(0.0, 5.0, 0.0, 0.0) == pytest.approx(0.01 * math.sin(0.3))
+    assert torque(2 * math.pi / order, -5.0, 1.0, 3.0) == pytest.approx(0.01 * math.sin(0.3))
+
+
+def test_a_drawn_mesh_ripple_is_no_whole_order() -> None:
+    rng = np.random.default_rng(1)
+    orders = [draw_outside("mesh_ripple", rng, 0.05, 0.01, 0.2, 100.0, 0.1,
+                           duration_s=10.0)["order"] for _ in range(200)]
+    assert min(abs(q - round(q)) for q in orders) >= 0.2
+    assert min(orders) >= 11 / 7.8 and max(orders) <= 31 / 2.2
+
+
+def test_the_offset_drift_grows_over_each_run() -> None:
+    torque = offset_drift({"Kt": 0.1, "i0": -0.5}, 10.0)
+    assert [torque(0.0, 5.0, 1.0, t) for t in (0.0, 5.0, 12.5)] == pytest.approx(
+        [0.0, -0.025, -0.0125])
+
+
+@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -155,4 +195,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
         found |= set(case.outside)
     assert found and found <= set(OUTSIDE_SETS[name])
     assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2
-    assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3
+    assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3 and OUTSIDE_SETS["unseen_4"] is UNSEEN_4

@@ -2,15 +2,16 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Five sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Six sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
 58 before any result with it and run once to be reported (its result was then read);
 :data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
 run only against the change; and :data:`UNSEEN_3`, written at stop 59 before any change
-made at that stop, and run once with main and once with the change. Each torque opposes
-the motor (it is subtracted from the drive torque), N·m.
+made at that stop, and run once with main and once with the change; and :data:`UNSEEN_4`,
+written at stop 59 after UNSEEN_3's result and before any change made after it. Each
+torque opposes the motor (it is subtracted from the drive torque), N·m.
 """
 
 from __future__ import annotations
@@ -228,6 +229,39 @@ def cable_windup(p: dict[str, float], duration_s: float) -> Torque:
     return torque
 
 
+def power_law_drag(p: dict[str, float], duration_s: float) -> Torque:
+    """A drag between dry and viscous, as in mixed lubrication or a seal's lip:
+    ``T·(|ω|/ω_ref)^δ·sign(ω)`` with ``0 < δ < 1`` (the power-law friction of friction
+    model fits), the sign smoothed over ``eps`` rad/s."""
+    T, wref, delta, eps = p["T"], p["omega_ref"], p["delta"], p["eps"]
+    return lambda theta, omega, i, t: T * (abs(omega) / wref) ** delta * math.tanh(omega / eps)
+
+
+def shaft_rub(p: dict[str, float], duration_s: float) -> Torque:
+    """A bent motor shaft rubbing a seal on one side of each motor revolution: a dry
+    friction ``Tc·(1 + sin(θ + φ))/2·sign(ω)``, the sign smoothed over ``eps`` rad/s.
+    Once per motor revolution, a friction, not a torque of the position alone."""
+    Tc, phi, eps = p["Tc"], p["phi"], p["eps"]
+    return lambda theta, omega, i, t: (Tc * 0.5 * (1 + math.sin(theta + phi))
+                                       * math.tanh(omega / eps))
+
+
+def mesh_ripple(p: dict[str, float], duration_s: float) -> Torque:
+    """The transmission error of a gear mesh behind a reducer: a torque periodic at the
+    mesh frequency, ``T·sin(q·θ + φ)`` at ``q`` = teeth / ratio cycles per motor
+    revolution, not a whole order (cogging's and torque ripple's are)."""
+    T, q, phi = p["T"], p["order"], p["phi"]
+    return lambda theta, omega, i, t: T * math.sin(q * theta + phi)
+
+
+def offset_drift(p: dict[str, float], duration_s: float) -> Torque:
+    """A current sensor's offset drifting as its amplifier warms over the run: the
+    recorded current is ``i + i₀·t/duration``, so the drive delivers the loss
+    ``Kt·i₀·t/duration`` against a model that takes the record for the current."""
+    kt, i0 = p["Kt"], p["i0"]
+    return lambda theta, omega, i, t: kt * i0 * (t % duration_s) / duration_s
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -256,8 +290,13 @@ UNSEEN_3: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "winding_heating": winding_heating, "sense_asymmetry": sense_asymmetry,
     "cable_windup": cable_windup,
 }
+#: Written at stop 59 after :data:`UNSEEN_3`'s result, before any change made after it.
+UNSEEN_4: dict[str, Callable[[dict[str, float], float], Torque]] = {
+    "power_law_drag": power_law_drag, "shaft_rub": shaft_rub,
+    "mesh_ripple": mesh_ripple, "offset_drift": offset_drift,
+}
 #: Every outside effect by name.
-ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3}
+ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -315,6 +354,20 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
         return {"Kt": Kt, "eps": 2 * strength}
     if name == "cable_windup":
         return {"T": strength * torque_ref, "theta_s": omega_ref * _log_uniform(rng, 0.3, 3.0)}
+    if name == "power_law_drag":
+        return {"T": strength * torque_ref, "omega_ref": omega_ref,
+                "delta": float(rng.uniform(0.3, 0.7)), "eps": 0.01 * omega_ref}
+    if name == "shaft_rub":
+        return {"Tc": strength * torque_ref, "phi": float(rng.uniform(0, 2 * math.pi)),
+                "eps": 0.01 * omega_ref}
+    if name == "mesh_ripple":
+        order = int(rng.integers(11, 32)) / float(rng.uniform(2.2, 7.8))
+        while abs(order - round(order)) < 0.2:  # keep it away from a whole order
+            order = int(rng.integers(11, 32)) / float(rng.uniform(2.2, 7.8))
+        return {"T": strength * torque_ref, "order": order,
+                "phi": float(rng.uniform(0, 2 * math.pi))}
+    if name == "offset_drift":
+        return {"Kt": Kt, "i0": 2 * strength * current_ref * float(rng.choice([-1.0, 1.0]))}
     raise KeyError(name)
 
 
