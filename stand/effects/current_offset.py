@@ -27,6 +27,12 @@ class CurrentOffset(Effect):
     units: ClassVar[dict[str, str]] = {"i0": "A"}
     # an offset keeps its sign when the shaft reverses, friction does not
     separated_by: ClassVar[str] = REVERSING_COMMAND
+    # the model is the physics it names (an additive constant on the record), not an
+    # approximation of it: what it leaves beyond noise is its estimate's error and the
+    # nominal model's own, at most 0.12 of what it explains in the benchmark's exact
+    # verdicts beyond noise (0.034 on seed 289 case 73, a speed loop at 4.5 ms);
+    # allowed twice that (docs/results/diagnose.md)
+    approximation_share: ClassVar[float] = 0.25
 
     i0: float
 
