@@ -309,10 +309,8 @@ def test_a_drag_thinning_over_the_run_within_the_noise_is_unexplained() -> None:
     # over each run, under a current sine, the gap 2.1 times the noise gap: the re-
     # identified D takes its mean, and the first family of shapes sees nothing (p 1); the
     # verdict was `none`. The drift shapes read it (p 8e-73 with the period-mean current)
-    case = draw_case(47, 291, outside_share=0.3, outside_set="unseen")
+    case, train, holdout = case_runs(47, 291, outside_set="unseen", current_mean=True)
     assert list(case.outside) == ["warming_drag"]
-    train, holdout = (Run(simulate_case(case, k, current_mean=True), name)
-                      for k, name in enumerate(("train", "holdout")))
     result = diagnose(train, holdout)
     assert result.verdict == UNEXPLAINED, result.message
     assert result.gap_percent < UNEXPLAINED_FACTOR * result.noise_gap_percent
@@ -323,9 +321,7 @@ def test_the_drift_shapes_count_only_with_a_candidates_shrink() -> None:
     # benchmark seed 290 case 64: an effect-free current sine of 2.9 Hz. The drift shapes
     # take a little of the nominal model's own error over the run (p 5e-8, shrink 0.012),
     # below the least shrink a candidate effect needs: the verdict stays `none`
-    case = draw_case(64, 290)
+    case, train, holdout = case_runs(64, 290, current_mean=True)
     assert not case.effects and not case.outside
-    train, holdout = (Run(simulate_case(case, k, current_mean=True), name)
-                      for k, name in enumerate(("train", "holdout")))
     result = diagnose(train, holdout)
     assert result.verdict == "none", result.notes

@@ -18,8 +18,7 @@ from stand.diagnosis.noise import APPROXIMATION_SHARE, UNEXPLAINED_FACTOR, unexp
 from stand.diagnosis.plots import worst_window
 from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK
 from stand.effects import UNEXPLAINED
-from stand.runfile import Run
-from tests.bench.diagnose.benchmark import case_runs, draw_case, rescore, simulate_case
+from tests.bench.diagnose.benchmark import case_runs, rescore
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 #: Fan drag coefficient, N·m·s²/rad²: 2.5 mN·m at 100 rad/s.
@@ -131,10 +130,8 @@ def test_a_current_offset_named_exactly_under_a_speed_loop_stays_as_it_is() -> N
     # benchmark seed 289 case 73: a current offset under a speed loop sampled every
     # 4.5 ms, named exactly; the nominal model's own error under the loop leaves 0.41 %
     # (3.9 times the noise gap), 0.034 times what the offset explains
-    case = draw_case(73, 289, outside_share=0.3, outside_set="held_out")
+    case, train, holdout = case_runs(73, 289, held_out=True, current_mean=True)
     assert case.truth == ["current_offset"]
-    train, holdout = (Run(simulate_case(case, k, current_mean=True), name)
-                      for k, name in enumerate(("train", "holdout")))
     result = diagnose(train, holdout)
     assert result.verdict == "current_offset", result.message
     assert result.verdict_gap_percent > UNEXPLAINED_FACTOR * result.noise_gap_percent
@@ -145,10 +142,8 @@ def test_a_current_sensor_of_direction_dependent_gain_is_more_than_an_offset() -
     # 1.43 times too high; an offset takes the mean of the loss and leaves 14 % of the
     # holdout speed (35 times the noise gap), 0.9 times what it explains: the verdict
     # was `current_offset`
-    case = draw_case(8, 293, outside_share=0.3, outside_set="unseen_3")
+    case, train, holdout = case_runs(8, 293, outside_set="unseen_3", current_mean=True)
     assert list(case.outside) == ["sense_asymmetry"]
-    train, holdout = (Run(simulate_case(case, k, current_mean=True), name)
-                      for k, name in enumerate(("train", "holdout")))
     result = diagnose(train, holdout)
     assert result.verdict == f"current_offset+{UNEXPLAINED}", result.message
 

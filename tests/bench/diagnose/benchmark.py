@@ -299,13 +299,17 @@ def simulate_case(case: Case, which: int, duration_s: float = RUN_DURATION_S,
     return {k: run[k] for k in names if k in run}
 
 
-def case_runs(index: int, seed: int, held_out: bool = False) -> tuple[Case, Run, Run]:
+def case_runs(index: int, seed: int, held_out: bool = False, *,
+              outside_set: str | None = None, current_mean: bool = False
+              ) -> tuple[Case, Run, Run]:
     """Case ``index`` of the benchmark seeded ``seed`` and its TRAIN and HOLDOUT runs, as
     tests take them (``held_out``: its held-out outside effects drawn at a share of 0.3,
-    as the benchmark runs it; else none)."""
-    case = (draw_case(index, seed, outside_share=0.3, outside_set="held_out") if held_out
+    as the benchmark runs it; ``outside_set``: that set's instead; else none), with the
+    drive's period-mean current where ``current_mean`` (``--current-mean``)."""
+    drawn_from = "held_out" if held_out else outside_set
+    case = (draw_case(index, seed, outside_share=0.3, outside_set=drawn_from) if drawn_from
             else draw_case(index, seed))
-    train, holdout = (Run(simulate_case(case, k), name)
+    train, holdout = (Run(simulate_case(case, k, current_mean=current_mean), name)
                       for k, name in enumerate(("train", "holdout")))
     return case, train, holdout
 
