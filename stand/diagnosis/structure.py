@@ -432,12 +432,13 @@ def shapes_test(residual_train: np.ndarray, train: Signals, residual_holdout: np
     """:func:`structure_test` of each of the :data:`FAMILIES` apart, as one test: the one
     of the smallest p-value, that p-value times the number of families (Bonferroni).
 
-    The drift and the coupled shapes count only where they shrink HOLDOUT's equation error by the
-    diagnosis' least shrink that counts (:data:`~stand.diagnosis.significance.MIN_SHRINK`;
-    their p-value is 1 otherwise), as a candidate effect must: the paired test holds
-    noise, not the nominal model's own small structural error, whose slow modulation over
-    a long run of one frequency a shape of time takes a little of (benchmark seed 290
-    case 64, effect-free, a current sine: the drift shapes p 5e-8 at a shrink of 0.012).
+    The drift and the coupled shapes count only where they shrink HOLDOUT's equation
+    error by the diagnosis' least shrink that counts
+    (:data:`~stand.diagnosis.significance.MIN_SHRINK`; their p-value is 1 otherwise), as
+    a candidate effect must: the paired test holds noise, not the nominal model's own
+    small structural error, whose slow modulation over a long run of one frequency a
+    shape of time takes a little of (benchmark seed 290 case 64, effect-free, a current
+    sine: the drift shapes p 5e-8 at a shrink of 0.012).
     The first family is not held to it: the re-identified model hides most of the
     effects its shapes stand for, so a real one can leave a small shrink (seed 260 case
     199, a fan drag within the noise gap: p 2e-13 below that shrink; held to it, 3 of 120
