@@ -8,8 +8,8 @@ and kept out of all tuning, but whose cases later stops read one by one (its edd
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
 58 before any result with it and run once to be reported (its result was then read);
 :data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
-run only against the change; and :data:`UNSEEN_3`, written at stop 59 before any change
-made at that stop, and run once with main and once with the change; and :data:`UNSEEN_4`,
+run only against the change; :data:`UNSEEN_3`, written at stop 59 before any change made
+at that stop, and run once with main and once with the change; and :data:`UNSEEN_4`,
 written at stop 59 after UNSEEN_3's result and before any change made after it. Each
 torque opposes the motor (it is subtracted from the drive torque), N·m.
 """
