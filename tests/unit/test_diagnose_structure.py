@@ -10,6 +10,7 @@ J 2e-5 kg·m², PRBS of ± 0.5 A, 1000-line encoder, 0.01 A current noise, 1 ms,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -60,6 +61,25 @@ def _coloured(rng: np.random.Generator, n: int, rho: float = 0.8) -> np.ndarray:
     return out
 
 
+def _planted(runs: tuple[Signals, Signals, np.ndarray], seed: int,
+             torque: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Equation errors of TRAIN and HOLDOUT: ``torque(w, i, t)`` of each run's speed and
+    low-passed current in TRAIN's RMS scales and its time from −0.5 to 0.5, plus AR(1)
+    noise (:func:`_coloured`, drawn from ``seed``, TRAIN's first)."""
+    tr, ho, _ = runs
+    rng = np.random.default_rng(seed)
+    omega_rms, current_rms = np.sqrt(np.mean(tr.omega_f**2)), np.sqrt(np.mean(tr.current**2))
+
+    def one(sig: Signals) -> np.ndarray:
+        t = np.linspace(-0.5, 0.5, len(sig))
+        shape = torque(sig.omega_f / omega_rms, sig.filt(sig.current) / current_rms, t)
+        return shape + _coloured(rng, len(sig))
+
+    e_tr = one(tr)
+    return e_tr, one(ho)
+
+
 def test_noise_alone_holds_the_level(runs: tuple[Signals, Signals, np.ndarray]) -> None:
     tr, ho, index = runs
     rng = np.random.default_rng(5)
@@ -78,27 +98,16 @@ def test_noise_alone_holds_the_level(runs: tuple[Signals, Signals, np.ndarray]) 
 def test_a_speed_squared_torque_in_both_runs_is_structure(
         runs: tuple[Signals, Signals, np.ndarray]) -> None:
     tr, ho, index = runs
-    rng = np.random.default_rng(6)
-
-    def planted(sig: Signals) -> np.ndarray:
-        w = sig.omega_f / np.sqrt(np.mean(tr.omega_f**2))
-        return 2.0 * w * np.abs(w) + _coloured(rng, len(sig))
-
-    result = structure_test(planted(tr), tr, planted(ho), ho, index)
+    e_tr, e_ho = _planted(runs, 6, lambda w, i, t: 2.0 * w * np.abs(w))
+    result = structure_test(e_tr, tr, e_ho, ho, index)
     assert result.significant, result.test
 
 
 def test_a_drag_that_drifts_over_the_run_is_structure_of_its_own_family(
         runs: tuple[Signals, Signals, np.ndarray]) -> None:
     tr, ho, index = runs
-    rng = np.random.default_rng(8)
-
-    def planted(sig: Signals) -> np.ndarray:
-        # a viscous drag falling by half over each run, its mean taken by the model's D
-        w = sig.omega_f / np.sqrt(np.mean(tr.omega_f**2))
-        return 4.0 * w * np.linspace(0.5, -0.5, len(sig)) + _coloured(rng, len(sig))
-
-    e_tr, e_ho = planted(tr), planted(ho)
+    # a viscous drag falling by half over each run, its mean taken by the model's D
+    e_tr, e_ho = _planted(runs, 8, lambda w, i, t: -4.0 * w * t)
     drift = structure_test(e_tr, tr, e_ho, ho, index, DRIFT_SHAPES).test
     both = shapes_test(e_tr, tr, e_ho, ho, index)
     assert both.significant and both.test.p_value == pytest.approx(
@@ -110,15 +119,8 @@ def test_a_drag_that_drifts_over_the_run_is_structure_of_its_own_family(
 def test_a_torque_constant_falling_with_the_speed_is_structure_of_the_coupled_family(
         runs: tuple[Signals, Signals, np.ndarray]) -> None:
     tr, ho, index = runs
-    rng = np.random.default_rng(9)
-
-    def planted(sig: Signals) -> np.ndarray:
-        # field weakening: a loss Kt·γ·|ω|/ω_ref·i, its mean share taken by the model's Kt
-        w = sig.omega_f / np.sqrt(np.mean(tr.omega_f**2))
-        i = sig.filt(sig.current) / np.sqrt(np.mean(tr.current**2))
-        return 3.0 * i * np.abs(w) + _coloured(rng, len(sig))
-
-    e_tr, e_ho = planted(tr), planted(ho)
+    # field weakening: a loss Kt·γ·|ω|/ω_ref·i, its mean share taken by the model's Kt
+    e_tr, e_ho = _planted(runs, 9, lambda w, i, t: 3.0 * i * np.abs(w))
     coupled = structure_test(e_tr, tr, e_ho, ho, index, COUPLED_SHAPES).test
     both = shapes_test(e_tr, tr, e_ho, ho, index)
     assert both.significant and both.test.p_value == pytest.approx(
