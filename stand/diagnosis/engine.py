@@ -296,7 +296,8 @@ def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, le
         return []
     shapes = (f"a torque growing with the speed beyond a friction level and a slope "
               f"p = {speed.p_value:.2g} (shrink of the equation error {speed.shrink:.2f})"
-              if speed else f"speed, current-level, time and drift shapes p = {p_shapes:.2g}")
+              if speed else f"speed, current-level, time, drift and current-speed shapes "
+                            f"p = {p_shapes:.2g}")
     return [f"the gap left ({verdict_gap:.2f} %, noise {noise_gap:.2f} %) is "
             f"{'within what the effects approximate' if speed else 'small'}, but its "
             f"equation error holds a shape no noise makes"

@@ -617,7 +617,7 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
                          phase_share=share)
 
 
-__all__ = ["AFTER_NAMED_NUISANCE", "DRIFT_SHAPES", "MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER",
-           "NUISANCE", "SHAPES",
+__all__ = ["AFTER_NAMED_NUISANCE", "COUPLED_SHAPES", "DRIFT_SHAPES", "FAMILIES",
+           "MAX_PHASE_SHARE", "MAX_TRAVEL_ORDER", "NUISANCE", "SHAPES",
            "SPEED_SHAPES", "TRAVEL_NUISANCE", "StructureTest", "steady_samples",
            "along_travel_test", "columns", "phase_share", "phase_terms", "structure_test"]
