@@ -1,7 +1,7 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
 (tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
-UNSEEN_2, UNSEEN_3 and UNSEEN_4. No diagnosis runs here: the last three are only ever run
-to be reported."""
+UNSEEN_2, UNSEEN_3, UNSEEN_4 and UNSEEN_5. No diagnosis runs here: the last four are only
+ever run to be reported."""
 
 from __future__ import annotations
 
@@ -16,18 +16,22 @@ from tests.bench.diagnose.outside import (
     UNSEEN_2,
     UNSEEN_3,
     UNSEEN_4,
+    UNSEEN_5,
     cable_windup,
     current_dead_band,
     dahl_friction,
     dragging_brake,
     draw_outside,
     field_weakening,
+    fluid_coupling,
     mesh_ripple,
     offset_drift,
+    one_way_drag,
     power_law_drag,
     rubbing_arc,
     sense_asymmetry,
     shaft_rub,
+    turbulent_load,
     warming_drag,
     winding_heating,
 )
@@ -180,7 +184,46 @@ def test_the_offset_drift_grows_over_each_run() -> None:
         [0.0, -0.025, -0.0125])
 
 
-@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4"])
+def test_the_fluid_coupling_drags_like_a_damper_then_hands_over_its_flywheel() -> None:
+    J_l, tau = 2e-4, 0.05
+    torque = fluid_coupling({"J_load": J_l, "tau": tau}, 10.0)
+    # a run starting at 10 rad/s: the flywheel with the motor, no torque
+    assert torque(0.0, 10.0, 0.0, 0.0) == pytest.approx(0.0)
+    # a speed step to 20 rad/s: at first a damper c = J_l/τ on the 10 rad/s slip, which
+    # decays as exp(−t/τ), exact whatever the step; the flywheel took J_l·10 rad/s
+    _, out, t, _ = _sweep(torque, 20.0, 0.3, 0.0, 0.0)
+    times = H * np.arange(len(out))
+    assert out == pytest.approx(J_l / tau * 10.0 * np.exp(-times / tau), rel=1e-9, abs=1e-15)
+    assert float(np.sum(out) * H) == pytest.approx(J_l * 10.0, rel=2e-3)
+    # a new run (the time starts again): the flywheel with the motor again
+    assert torque(0.0, -3.0, 0.0, 0.0) == pytest.approx(0.0)
+
+
+def test_the_turbulent_load_is_random_of_its_rms_and_correlation_time_and_drawn_again_alike(
+        ) -> None:
+    sigma, tau = 0.01, 0.02
+    params = {"sigma": sigma, "tau": tau, "seed": 7.0}
+    torque = turbulent_load(params, 100.0)
+    _, out, _, _ = _sweep(torque, 5.0, 40.0, 0.0, 0.0)
+    assert float(np.std(out)) == pytest.approx(sigma, rel=0.1)
+    lag = int(round(tau / H))  # an OU process correlates as exp(−lag/τ)
+    corr = float(np.corrcoef(out[:-lag], out[lag:])[0, 1])
+    assert corr == pytest.approx(math.exp(-1.0), abs=0.08)
+    again = turbulent_load(params, 100.0)
+    assert [again(0.0, 5.0, 0.0, H * (k + 1)) for k in range(50)] == pytest.approx(out[:50])
+    other = turbulent_load({**params, "seed": 8.0}, 100.0)
+    assert [other(0.0, 5.0, 0.0, H * (k + 1)) for k in range(50)] != pytest.approx(out[:50])
+
+
+def test_the_one_way_drag_is_viscous_in_one_direction_only() -> None:
+    torque = one_way_drag({"c": 1e-3, "s": -1.0}, 10.0)
+    assert [torque(0.0, w, 0.0, 0.0) for w in (-20.0, -5.0, 5.0, 20.0)] == pytest.approx(
+        [-0.02, -0.005, 0.0, 0.0])
+    forward = one_way_drag({"c": 1e-3, "s": 1.0}, 10.0)
+    assert [forward(0.0, w, 0.0, 0.0) for w in (-5.0, 5.0)] == pytest.approx([0.0, 0.005])
+
+
+@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4", "unseen_5"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -196,3 +239,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
     assert found and found <= set(OUTSIDE_SETS[name])
     assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2
     assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3 and OUTSIDE_SETS["unseen_4"] is UNSEEN_4
+    assert OUTSIDE_SETS["unseen_5"] is UNSEEN_5

@@ -2,15 +2,16 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Six sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Seven sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
 58 before any result with it and run once to be reported (its result was then read);
 :data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
 run only against the change; :data:`UNSEEN_3`, written at stop 59 before any change made
-at that stop, and run once with main and once with the change; and :data:`UNSEEN_4`,
-written at stop 59 after UNSEEN_3's result and before any change made after it. Each
+at that stop, and run once with main and once with the change; :data:`UNSEEN_4`,
+written at stop 59 after UNSEEN_3's result and before any change made after it; and
+:data:`UNSEEN_5`, written at stop 60 before any change made at that stop. Each
 torque opposes the motor (it is subtracted from the drive torque), N·m.
 """
 
@@ -262,6 +263,61 @@ def offset_drift(p: dict[str, float], duration_s: float) -> Torque:
     return lambda theta, omega, i, t: kt * i0 * (t % duration_s) / duration_s
 
 
+def fluid_coupling(p: dict[str, float], duration_s: float) -> Torque:
+    """A flywheel (a load, a fan's rotor) driven through a fluid or eddy-current
+    coupling: the coupling carries ``c·(ω − ω_L)`` and the load follows
+    ``J_L·dω_L/dt = c·(ω − ω_L)``, a first-order lag of time constant ``τ = J_L/c``.
+    Much slower than ``τ`` the load adds its inertia; much faster, a viscous drag
+    ``c``: neither a constant inertia nor a constant drag. The load speed is carried
+    from call to call, exactly for the motor speed held over each sub-step."""
+    J_l, tau = p["J_load"], p["tau"]
+    c = J_l / tau
+    state = {"t": -1.0, "omega_l": 0.0, "started": 0.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if not state["started"] or t < state["t"]:  # a new run: the load with the motor
+            state.update(t=t, omega_l=omega, started=1.0)
+        h = t - state["t"]
+        state["t"] = t
+        coupling = c * (omega - state["omega_l"])
+        state["omega_l"] = omega + (state["omega_l"] - omega) * math.exp(-h / tau)
+        return coupling
+
+    return torque
+
+
+def turbulent_load(p: dict[str, float], duration_s: float) -> Torque:
+    """A load torque that no state of the stand predicts: a stirrer in a turbulent
+    fluid, a tool chattering in a cut. Band-limited random (an Ornstein-Uhlenbeck
+    process of RMS ``σ`` and correlation time ``τ``), drawn exactly at each call from
+    a stream of its own for each run (``seed``), so a case draws the same torque again."""
+    sigma, tau, seed = p["sigma"], p["tau"], int(p["seed"])
+    state: dict[str, Any] = {"t": -1.0, "x": 0.0, "run": -1, "rng": None}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if state["rng"] is None or t < state["t"]:  # a new run: a stream of its own
+            state["run"] += 1
+            state["rng"] = np.random.default_rng([seed, state["run"]])
+            state.update(t=t, x=sigma * float(state["rng"].standard_normal()))
+        h = t - state["t"]
+        state["t"] = t
+        decay = math.exp(-h / tau)
+        state["x"] = (state["x"] * decay
+                      + sigma * math.sqrt(1.0 - decay * decay) * float(state["rng"].standard_normal()))
+        return float(state["x"])
+
+    return torque
+
+
+def one_way_drag(p: dict[str, float], duration_s: float) -> Torque:
+    """A viscous drag in one direction of rotation only (a freewheel whose idling
+    drag is viscous, a fan whose check flap opens one way): ``c·ω`` while ``s·ω > 0``
+    (``s = ±1``), none the other way; that is ``c/2·ω`` (a drag ``D`` takes it) plus
+    ``s·c/2·|ω|``, which no model odd in the speed fits."""
+    c, s = p["c"], p["s"]
+    return lambda theta, omega, i, t: c * omega if s * omega > 0.0 else 0.0
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -295,8 +351,14 @@ UNSEEN_4: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "power_law_drag": power_law_drag, "shaft_rub": shaft_rub,
     "mesh_ripple": mesh_ripple, "offset_drift": offset_drift,
 }
+#: Written at stop 60 before any change made at that stop.
+UNSEEN_5: dict[str, Callable[[dict[str, float], float], Torque]] = {
+    "fluid_coupling": fluid_coupling, "turbulent_load": turbulent_load,
+    "one_way_drag": one_way_drag,
+}
 #: Every outside effect by name.
-ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4}
+ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4,
+               **UNSEEN_5}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -368,6 +430,13 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
                 "phi": float(rng.uniform(0, 2 * math.pi))}
     if name == "offset_drift":
         return {"Kt": Kt, "i0": 2 * strength * current_ref * float(rng.choice([-1.0, 1.0]))}
+    if name == "fluid_coupling":
+        return {"J_load": J * 10 * strength, "tau": _log_uniform(rng, 0.005, 0.5)}
+    if name == "turbulent_load":
+        return {"sigma": strength * torque_ref, "tau": _log_uniform(rng, 0.005, 0.2),
+                "seed": float(rng.integers(2**31))}
+    if name == "one_way_drag":
+        return {"c": 2 * strength * torque_ref / omega_ref, "s": float(rng.choice([-1.0, 1.0]))}
     raise KeyError(name)
 
 
