@@ -38,11 +38,11 @@ UNEXPLAINED_FACTOR = 3.0
 #: What a vocabulary model may leave beyond noise of the effect it names, as a share of
 #: what it explains (RMS, % of the holdout speed, added in quadrature): at 1 a verdict
 #: ends in ``unexplained`` when its effects leave more beyond noise than they explain.
-#: An effect whose model approximates its physics more loosely says so
-#: (:attr:`stand.effects.base.Effect.approximation_share`; backlash); a verdict allows
-#: the largest of its effects'. Measured on in-vocabulary benchmark cases named exactly
-#: (docs/results/diagnose.md): dev seeds 260-261, every effect but backlash at most 0.94
-#: (378 cases).
+#: An effect whose model approximates its physics more loosely or more tightly says so
+#: (:attr:`stand.effects.base.Effect.approximation_share`: backlash 2, dry friction 0.5,
+#: a current offset 0.25); a verdict allows the largest of its effects'. Measured on
+#: in-vocabulary benchmark cases named exactly (docs/results/diagnose.md): dev seeds
+#: 260-261, every effect but backlash at most 0.94 (378 cases).
 APPROXIMATION_SHARE = 1.0
 
 

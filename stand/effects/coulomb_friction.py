@@ -57,6 +57,12 @@ class CoulombFriction(Effect):
     units: ClassVar[dict[str, str]] = {"Tc_over_Kt_A": "A", "Tc": "N·m"}
     # friction changes sign with the speed, a constant torque does not
     separated_by: ClassVar[str] = REVERSING_COMMAND
+    # a dry friction's model is its simulated physics, but a real shaft's friction is
+    # only near it (presliding, a level that varies along the travel): on the real
+    # EMPS axis Coulomb friction with an offset leaves 0.25 of what it explains beyond
+    # noise, on the benchmark's exact verdicts at most 0.10 (dev seeds 260-261);
+    # allowed twice the real axis's (docs/results/diagnose.md)
+    approximation_share: ClassVar[float] = 0.5
 
     Tc: float
 
