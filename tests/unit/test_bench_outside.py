@@ -1,7 +1,7 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
 (tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
-UNSEEN_2, UNSEEN_3, UNSEEN_4 and UNSEEN_5. No diagnosis runs here: the last four are only
-ever run to be reported."""
+UNSEEN_2 to UNSEEN_6. No diagnosis runs here: the last five are only ever run to be
+reported."""
 
 from __future__ import annotations
 
@@ -17,6 +17,8 @@ from tests.bench.diagnose.outside import (
     UNSEEN_3,
     UNSEEN_4,
     UNSEEN_5,
+    UNSEEN_6,
+    ball_detent,
     cable_windup,
     current_dead_band,
     dahl_friction,
@@ -24,6 +26,7 @@ from tests.bench.diagnose.outside import (
     draw_outside,
     field_weakening,
     fluid_coupling,
+    friction_run_in,
     mesh_ripple,
     offset_drift,
     one_way_drag,
@@ -31,6 +34,7 @@ from tests.bench.diagnose.outside import (
     rubbing_arc,
     sense_asymmetry,
     shaft_rub,
+    slip_clutch,
     turbulent_load,
     warming_drag,
     winding_heating,
@@ -223,7 +227,53 @@ def test_the_one_way_drag_is_viscous_in_one_direction_only() -> None:
     assert [forward(0.0, w, 0.0, 0.0) for w in (-5.0, 5.0)] == pytest.approx([0.0, 0.005])
 
 
-@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4", "unseen_5"])
+def test_the_ball_detent_pulls_into_its_notch_once_a_load_revolution() -> None:
+    r, w = 4.0, 0.1
+    torque = ball_detent({"T": 0.01, "ratio": r, "phi": 0.0, "width": w}, 10.0)
+    # the load one half-width past the notch: the peak, pulling back (opposing)
+    assert torque(r * w, 5.0, 0.0, 0.0) == pytest.approx(0.01)
+    assert torque(-r * w, -5.0, 0.0, 0.0) == pytest.approx(-0.01)
+    # the same one load revolution (r motor revolutions) on, whatever the speed
+    assert torque(r * (w + 2 * math.pi), -5.0, 1.0, 3.0) == pytest.approx(0.01)
+    # at the notch's bottom and half a load revolution away: nothing
+    assert [torque(x, 5.0, 0.0, 0.0) for x in (0.0, r * math.pi * 0.999)] == pytest.approx(
+        [0.0, 0.0], abs=1e-12)
+
+
+def test_the_slip_clutch_carries_a_gentle_acceleration_and_slips_at_its_limit() -> None:
+    J_l, slip = 1e-3, 0.01
+    torque = slip_clutch({"J_load": J_l, "T_slip": slip}, 10.0)
+    torque(0.0, 0.0, 0.0, 0.0)  # a new run at rest
+    # a ramp of the shaft at 2 rad/s²: the flywheel follows, carrying J_l·2 = 0.002 N·m
+    t, out = 0.0, []
+    for _ in range(2000):
+        t += H
+        out.append(torque(0.0, 2.0 * t, 0.0, t))
+    # (the torque read before each sub-step's update lags it by half a sub-step: h/2τ)
+    assert out[-1] == pytest.approx(J_l * 2.0 * (1 + H / 0.004), rel=1e-3)
+    # a jump of the shaft's speed: the clutch slips at its limit, and the flywheel takes
+    # T_slip/J_l = 10 rad/s² meanwhile
+    jumped = [torque(0.0, 50.0, 0.0, t + H * (k + 1)) for k in range(1000)]
+    assert jumped[0] == pytest.approx(slip) and jumped[-1] == pytest.approx(slip)
+    # the other way round it slips the other way
+    assert torque(0.0, -50.0, 0.0, t + 0.2) == pytest.approx(-slip)
+
+
+def test_the_friction_runs_in_with_the_travel_not_the_time() -> None:
+    Tc, a, s0 = 0.01, 0.5, 10.0
+    torque = friction_run_in({"Tc": Tc, "a": a, "s0": s0, "eps": 1e-6}, 10.0)
+    assert torque(0.0, 5.0, 0.0, 0.0) == pytest.approx(Tc)
+    # 5 rad there and 5 back (the travel counts both ways): Tc·(1 − a·(1 − e^−1))
+    _, _, t, theta = _sweep(torque, 5.0, 1.0, 0.0, 0.0)
+    _, back, t, theta = _sweep(torque, -5.0, 1.0, t, theta)
+    level = 1 - a * (1 - math.exp(-1.0))
+    assert back[-1] == pytest.approx(-Tc * level, rel=1e-3)
+    # five seconds at a standstill run nothing in: the same level when it moves again
+    assert torque(theta, 5.0, 0.0, t + 5.0) == pytest.approx(Tc * level, rel=1e-3)
+
+
+@pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4", "unseen_5",
+                                  "unseen_6"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -239,4 +289,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
     assert found and found <= set(OUTSIDE_SETS[name])
     assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2
     assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3 and OUTSIDE_SETS["unseen_4"] is UNSEEN_4
-    assert OUTSIDE_SETS["unseen_5"] is UNSEEN_5
+    assert OUTSIDE_SETS["unseen_5"] is UNSEEN_5 and OUTSIDE_SETS["unseen_6"] is UNSEEN_6

@@ -46,6 +46,7 @@ from tests.bench.diagnose.outside import (
     UNSEEN_3,
     UNSEEN_4,
     UNSEEN_5,
+    UNSEEN_6,
     draw_outside,
     outside_torque,
 )
@@ -106,7 +107,7 @@ class Case:
 #: The outside sets a benchmark can draw from (:mod:`tests.bench.diagnose.outside`).
 OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN,
                 "unseen_2": UNSEEN_2, "unseen_3": UNSEEN_3, "unseen_4": UNSEEN_4,
-                "unseen_5": UNSEEN_5}
+                "unseen_5": UNSEEN_5, "unseen_6": UNSEEN_6}
 
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,

@@ -2,7 +2,7 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Seven sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Eight sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
@@ -10,9 +10,10 @@ and position frictions are named in their notes); :data:`UNSEEN`, written at sto
 :data:`UNSEEN_2`, written at stop 58 before any change made after that result, and
 run only against the change; :data:`UNSEEN_3`, written at stop 59 before any change made
 at that stop, and run once with main and once with the change; :data:`UNSEEN_4`,
-written at stop 59 after UNSEEN_3's result and before any change made after it; and
-:data:`UNSEEN_5`, written at stop 60 before any change made at that stop. Each
-torque opposes the motor (it is subtracted from the drive torque), N·m.
+written at stop 59 after UNSEEN_3's result and before any change made after it;
+:data:`UNSEEN_5`, written at stop 60 before any change made at that stop; and
+:data:`UNSEEN_6`, written at stop 60 after UNSEEN_5's result and before any change made
+after it. Each torque opposes the motor (it is subtracted from the drive torque), N·m.
 """
 
 from __future__ import annotations
@@ -318,6 +319,68 @@ def one_way_drag(p: dict[str, float], duration_s: float) -> Torque:
     return lambda theta, omega, i, t: c * omega if s * omega > 0.0 else 0.0
 
 
+def ball_detent(p: dict[str, float], duration_s: float) -> Torque:
+    """A spring-loaded ball detent on the load behind a reducer of ratio ``r``: once per
+    load revolution the ball rides over a notch, which pulls the load back into it: the
+    slope of a narrow Gaussian well of half-width ``w`` rad of the load, peaking at ``T``
+    one half-width from the notch's bottom. Conservative
+    and periodic in the position like cogging, but at ``1/r`` cycles per motor
+    revolution and over a narrow arc (many harmonics), not a whole-order sine."""
+    T, r, phi, w = p["T"], p["ratio"], p["phi"], p["width"]
+    peak = math.exp(-0.5)  # the derivative of a Gaussian peaks at one width
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        x = math.remainder(theta / r + phi, 2 * math.pi) / w
+        return T * x * math.exp(-0.5 * x * x) / peak
+
+    return torque
+
+
+def slip_clutch(p: dict[str, float], duration_s: float) -> Torque:
+    """A flywheel ``J_L`` behind a slip clutch (a torque limiter): the clutch holds it to
+    the shaft, stiffly (a damper of time constant ``τ_c`` = 2 ms against ``J_L``), until
+    the torque it carries reaches ``T_slip``, then slips at ``T_slip``: an added inertia
+    while the shaft accelerates gently, a dry friction against the flywheel's own speed
+    when it accelerates hard."""
+    J_l, slip = p["J_load"], p["T_slip"]
+    tau = 0.002
+    c = J_l / tau
+    state = {"t": -1.0, "omega_l": 0.0, "started": 0.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if not state["started"] or t < state["t"]:  # a new run: the flywheel with the shaft
+            state.update(t=t, omega_l=omega, started=1.0)
+        h = t - state["t"]
+        state["t"] = t
+        carried = min(max(c * (omega - state["omega_l"]), -slip), slip)
+        # the flywheel takes what the clutch carries; held, it follows the shaft exactly
+        state["omega_l"] = (omega + (state["omega_l"] - omega) * math.exp(-h / tau)
+                            if abs(carried) < slip else state["omega_l"] + h * carried / J_l)
+        return carried
+
+    return torque
+
+
+def friction_run_in(p: dict[str, float], duration_s: float) -> Torque:
+    """Dry friction of a bearing whose grease spreads as it runs: the level falls with
+    the angle travelled since the run started, ``Tc·(1 − a·(1 − exp(−s/s₀)))·sign(ω)``
+    with ``s`` the travel (rad), the sign smoothed over ``eps`` rad/s. Not a friction of
+    constant level, and it follows the travel, not the time."""
+    Tc, a, s0, eps = p["Tc"], p["a"], p["s0"], p["eps"]
+    state = {"t": -1.0, "theta": 0.0, "travel": 0.0, "started": 0.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if not state["started"] or t < state["t"]:  # a new run: the grease settled again
+            state.update(theta=theta, travel=0.0, started=1.0)
+        state["t"] = t
+        state["travel"] += abs(theta - state["theta"])
+        state["theta"] = theta
+        level = 1.0 - a * (1.0 - math.exp(-state["travel"] / s0))
+        return Tc * level * math.tanh(omega / eps)
+
+    return torque
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -356,9 +419,14 @@ UNSEEN_5: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fluid_coupling": fluid_coupling, "turbulent_load": turbulent_load,
     "one_way_drag": one_way_drag,
 }
+#: Written at stop 60 after :data:`UNSEEN_5`'s result, before any change made after it.
+UNSEEN_6: dict[str, Callable[[dict[str, float], float], Torque]] = {
+    "ball_detent": ball_detent, "slip_clutch": slip_clutch,
+    "friction_run_in": friction_run_in,
+}
 #: Every outside effect by name.
 ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4,
-               **UNSEEN_5}
+               **UNSEEN_5, **UNSEEN_6}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -437,6 +505,15 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
                 "seed": float(rng.integers(2**31))}
     if name == "one_way_drag":
         return {"c": 2 * strength * torque_ref / omega_ref, "s": float(rng.choice([-1.0, 1.0]))}
+    if name == "ball_detent":
+        return {"T": strength * torque_ref, "ratio": float(rng.uniform(2.2, 7.8)),
+                "phi": float(rng.uniform(0, 2 * math.pi)), "width": _log_uniform(rng, 0.05, 0.3)}
+    if name == "slip_clutch":
+        return {"J_load": J * 10 * strength, "T_slip": float(rng.uniform(0.3, 1.0)) * torque_ref}
+    if name == "friction_run_in":
+        return {"Tc": strength * torque_ref, "a": float(rng.uniform(0.3, 0.7)),
+                "s0": omega_ref * duration_s * _log_uniform(rng, 0.05, 0.5),
+                "eps": 0.01 * omega_ref}
     raise KeyError(name)
 
 
