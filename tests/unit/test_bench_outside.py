@@ -1,6 +1,6 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
 (tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
-UNSEEN_2 to UNSEEN_6. No diagnosis runs here: the last five are only ever run to be
+UNSEEN_2 to UNSEEN_7. No diagnosis runs here: the last six are only ever run to be
 reported."""
 
 from __future__ import annotations
@@ -18,14 +18,18 @@ from tests.bench.diagnose.outside import (
     UNSEEN_4,
     UNSEEN_5,
     UNSEEN_6,
+    UNSEEN_7,
     ball_detent,
+    breathing_rub,
     cable_windup,
+    current_clipping,
     current_dead_band,
     dahl_friction,
     dragging_brake,
     draw_outside,
     field_weakening,
     fluid_coupling,
+    freewheel_flywheel,
     friction_run_in,
     mesh_ripple,
     offset_drift,
@@ -272,8 +276,37 @@ def test_the_friction_runs_in_with_the_travel_not_the_time() -> None:
     assert torque(theta, 5.0, 0.0, t + 5.0) == pytest.approx(Tc * level, rel=1e-3)
 
 
+def test_the_current_clipping_loses_only_beyond_the_limit() -> None:
+    torque = current_clipping({"Kt": 0.1, "I_lim": 2.0}, 10.0)
+    assert [torque(0.0, 5.0, i, 0.0) for i in (-3.0, -1.0, 0.0, 1.9, 2.5)] == pytest.approx(
+        [-0.1, 0.0, 0.0, 0.0, 0.05])
+
+
+def test_the_freewheel_drives_its_flywheel_one_way_and_lets_it_overrun() -> None:
+    J_l, tau_l = 1e-3, 0.5
+    torque = freewheel_flywheel({"J_load": J_l, "s": 1.0, "tau_load": tau_l}, 10.0)
+    torque(0.0, 0.0, 0.0, 0.0)  # a new run: the flywheel at rest
+    # the shaft turning backwards: the freewheel overruns, no torque
+    assert torque(0.0, -20.0, 0.0, H) == 0.0
+    # a ramp forwards at 2 rad/s²: engaged, it carries J_l·2 and the flywheel's own drag
+    t = H
+    for _ in range(20000):
+        t += H
+        carried = torque(0.0, 2.0 * (t - H), 0.0, t)
+    assert carried == pytest.approx(J_l * (2.0 + 2.0 * (t - H) / tau_l), rel=0.02)
+    # the shaft stops at once: the flywheel overruns and coasts, nothing carried
+    assert [torque(0.0, 0.0, 0.0, t + H * k) for k in range(1, 5)] == [0.0] * 4
+
+
+def test_the_breathing_rub_swells_and_fades_in_time_whatever_the_position() -> None:
+    torque = breathing_rub({"Tc": 0.01, "f_hz": 0.25, "phi": 0.0, "eps": 1e-6}, 10.0)
+    assert [torque(0.0, 5.0, 0.0, t) for t in (0.0, 1.0, 3.0)] == pytest.approx(
+        [0.005, 0.01, 0.0], abs=1e-12)
+    assert torque(123.0, -5.0, 0.0, 1.0) == pytest.approx(-0.01)
+
+
 @pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4", "unseen_5",
-                                  "unseen_6"])
+                                  "unseen_6", "unseen_7"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -290,3 +323,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
     assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2
     assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3 and OUTSIDE_SETS["unseen_4"] is UNSEEN_4
     assert OUTSIDE_SETS["unseen_5"] is UNSEEN_5 and OUTSIDE_SETS["unseen_6"] is UNSEEN_6
+    assert OUTSIDE_SETS["unseen_7"] is UNSEEN_7

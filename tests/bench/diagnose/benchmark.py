@@ -47,6 +47,7 @@ from tests.bench.diagnose.outside import (
     UNSEEN_4,
     UNSEEN_5,
     UNSEEN_6,
+    UNSEEN_7,
     draw_outside,
     outside_torque,
 )
@@ -107,7 +108,8 @@ class Case:
 #: The outside sets a benchmark can draw from (:mod:`tests.bench.diagnose.outside`).
 OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN,
                 "unseen_2": UNSEEN_2, "unseen_3": UNSEEN_3, "unseen_4": UNSEEN_4,
-                "unseen_5": UNSEEN_5, "unseen_6": UNSEEN_6}
+                "unseen_5": UNSEEN_5, "unseen_6": UNSEEN_6,
+                "unseen_7": UNSEEN_7}
 
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,

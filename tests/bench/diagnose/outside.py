@@ -2,7 +2,7 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Eight sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Nine sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
@@ -11,9 +11,11 @@ and position frictions are named in their notes); :data:`UNSEEN`, written at sto
 run only against the change; :data:`UNSEEN_3`, written at stop 59 before any change made
 at that stop, and run once with main and once with the change; :data:`UNSEEN_4`,
 written at stop 59 after UNSEEN_3's result and before any change made after it;
-:data:`UNSEEN_5`, written at stop 60 before any change made at that stop; and
+:data:`UNSEEN_5`, written at stop 60 before any change made at that stop;
 :data:`UNSEEN_6`, written at stop 60 after UNSEEN_5's result and before any change made
-after it. Each torque opposes the motor (it is subtracted from the drive torque), N·m.
+after it; and :data:`UNSEEN_7`, written at stop 60 after UNSEEN_6's result and before
+any change made after it. Each torque opposes the motor (it is subtracted from the drive
+torque), N·m.
 """
 
 from __future__ import annotations
@@ -381,6 +383,48 @@ def friction_run_in(p: dict[str, float], duration_s: float) -> Torque:
     return torque
 
 
+def current_clipping(p: dict[str, float], duration_s: float) -> Torque:
+    """A drive that records its current demand while its bridge delivers at most
+    ``I_lim`` (a current limit the record does not show): the motor delivers
+    ``Kt·clip(i, −I_lim, I_lim)``, the loss ``Kt·(i − clip(i, −I_lim, I_lim))``, nothing
+    below the limit and growing linearly beyond it."""
+    kt, lim = p["Kt"], p["I_lim"]
+    return lambda theta, omega, i, t: kt * (i - min(max(i, -lim), lim))
+
+
+def freewheel_flywheel(p: dict[str, float], duration_s: float) -> Torque:
+    """A flywheel ``J_L`` behind a freewheel (a sprag clutch) that engages in one
+    direction ``s`` only: the shaft drives it when ``s·(ω − ω_L) > 0`` (stiffly, a damper
+    of time constant 2 ms against ``J_L``), and it overruns freely otherwise, coasting
+    down on its own drag (time constant ``τ_L``). An added inertia while the shaft
+    speeds up in direction ``s``, none while it slows down or turns the other way."""
+    J_l, s, tau_l = p["J_load"], p["s"], p["tau_load"]
+    tau = 0.002
+    c = J_l / tau
+    state = {"t": -1.0, "omega_l": 0.0, "started": 0.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if not state["started"] or t < state["t"]:  # a new run: the flywheel at rest
+            state.update(t=t, omega_l=0.0, started=1.0)
+        h = t - state["t"]
+        state["t"] = t
+        carried = c * (omega - state["omega_l"]) if s * (omega - state["omega_l"]) > 0 else 0.0
+        drag = J_l * state["omega_l"] / tau_l
+        state["omega_l"] += h * (carried - drag) / J_l
+        return carried
+
+    return torque
+
+
+def breathing_rub(p: dict[str, float], duration_s: float) -> Torque:
+    """A seal whose contact comes and goes as a part heats and cools under a thermostat:
+    a dry friction ``Tc·(1 + sin(2π·f·t + φ))/2·sign(ω)`` that swells and fades over
+    time at ``f`` Hz, whatever the position; the sign smoothed over ``eps`` rad/s."""
+    Tc, f, phi, eps = p["Tc"], p["f_hz"], p["phi"], p["eps"]
+    return lambda theta, omega, i, t: (Tc * 0.5 * (1 + math.sin(2 * math.pi * f * t + phi))
+                                       * math.tanh(omega / eps))
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -424,9 +468,14 @@ UNSEEN_6: dict[str, Callable[[dict[str, float], float], Torque]] = {
     "ball_detent": ball_detent, "slip_clutch": slip_clutch,
     "friction_run_in": friction_run_in,
 }
+#: Written at stop 60 after :data:`UNSEEN_6`'s result, before any change made after it.
+UNSEEN_7: dict[str, Callable[[dict[str, float], float], Torque]] = {
+    "current_clipping": current_clipping, "freewheel_flywheel": freewheel_flywheel,
+    "breathing_rub": breathing_rub,
+}
 #: Every outside effect by name.
 ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4,
-               **UNSEEN_5, **UNSEEN_6}
+               **UNSEEN_5, **UNSEEN_6, **UNSEEN_7}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -514,6 +563,14 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
         return {"Tc": strength * torque_ref, "a": float(rng.uniform(0.3, 0.7)),
                 "s0": omega_ref * duration_s * _log_uniform(rng, 0.05, 0.5),
                 "eps": 0.01 * omega_ref}
+    if name == "current_clipping":
+        return {"Kt": Kt, "I_lim": current_ref * float(rng.uniform(0.7, 1.5)) / (1 + 5 * strength)}
+    if name == "freewheel_flywheel":
+        return {"J_load": J * 10 * strength, "s": float(rng.choice([-1.0, 1.0])),
+                "tau_load": _log_uniform(rng, 0.1, 2.0)}
+    if name == "breathing_rub":
+        return {"Tc": strength * torque_ref, "f_hz": _log_uniform(rng, 0.05, 0.5),
+                "phi": float(rng.uniform(0, 2 * math.pi)), "eps": 0.01 * omega_ref}
     raise KeyError(name)
 
 
