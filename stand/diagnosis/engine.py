@@ -59,6 +59,8 @@ from stand.diagnosis.signals import Signals, prepare
 from stand.diagnosis.significance import PairedTest, paired_improvement
 from stand.diagnosis.structure import (
     AFTER_NAMED_NUISANCE,
+    DRIFT_SHAPES,
+    FAMILIES,
     MAX_PHASE_SHARE,
     SPEED_SHAPES,
     along_travel_test,
@@ -226,12 +228,15 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                             SPEED_SHAPES, AFTER_NAMED_NUISANCE, steady_current=True,
                             noise=noise).test
              if chosen else None)
+    drift = structure.families[FAMILIES.index(DRIFT_SHAPES)] if chosen else None
     share = effects.approximation_share(chosen)
     left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
                        along.test.p_value, named=bool(chosen),
                        along_shrink=along.test.shrink,
                        p_speed=speed.p_value if speed else 1.0,
-                       speed_shrink=speed.shrink if speed else 0.0, share=share)
+                       speed_shrink=speed.shrink if speed else 0.0, share=share,
+                       p_drift=drift.p_value if drift else 1.0,
+                       drift_shrink=drift.shrink if drift else 0.0)
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -262,11 +267,13 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         position_structure_shrink=along.test.shrink,
         speed_structure_p_value=speed.p_value if speed else None,
         speed_structure_shrink=speed.shrink if speed else None,
+        drift_structure_p_value=drift.p_value if drift else None,
+        drift_structure_shrink=drift.shrink if drift else None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions + bench.set_aside
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
-                                 along.test.p_value, speed, share)
+                                 along.test.p_value, speed, share, drift)
                + _phase_note(along.phase_share)),
         steps=steps), traces
 
@@ -287,15 +294,18 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
 
 def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,
                     p_shapes: float, p_along: float, speed: PairedTest | None,
-                    share: float) -> list[str]:
-    """Why a remainder is ``unexplained`` by its shape rather than its size (``speed``:
-    the speed shapes' test after named effects, None with nothing named)."""
+                    share: float, drift: PairedTest | None = None) -> list[str]:
+    """Why a remainder is ``unexplained`` by its shape rather than its size (``speed``
+    and ``drift``: the speed and the drift shapes' tests after named effects, None with
+    nothing named)."""
     if not left:
         return []
     if beyond_approximation(nominal_gap, verdict_gap, noise_gap, share):
         return []
     shapes = (f"a torque growing with the speed beyond a friction level and a slope "
               f"p = {speed.p_value:.2g} (shrink of the equation error {speed.shrink:.2f})"
+              + (f", a drag or friction level drifting over the run p = {drift.p_value:.2g} "
+                 f"(shrink {drift.shrink:.2f})" if drift else "")
               if speed else f"speed, current-level, time, drift and current-speed shapes "
                             f"p = {p_shapes:.2g}")
     return [f"the gap left ({verdict_gap:.2f} %, noise {noise_gap:.2f} %) is "

@@ -95,7 +95,8 @@ def beyond_approximation(nominal_gap: float, verdict_gap: float, noise_gap: floa
 def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
                 p_shapes: float = 1.0, p_along: float = 1.0, named: bool = False,
                 p_speed: float = 1.0, speed_shrink: float = 0.0,
-                along_shrink: float = 0.0, share: float = APPROXIMATION_SHARE) -> bool:
+                along_shrink: float = 0.0, share: float = APPROXIMATION_SHARE,
+                p_drift: float = 1.0, drift_shrink: float = 0.0) -> bool:
     """Whether the gap the verdict's effects leave (%, ``verdict_gap``; the nominal
     model's ``nominal_gap`` when none is ``named``) is ``unexplained``.
 
@@ -119,12 +120,15 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
       (the named effects' largest :data:`APPROXIMATION_SHARE`) of what the effects
       explain (see the module docstring); with nothing named, always.
     * Otherwise, after named effects, only if the remainder varies along the travel
-      (``p_along``), or, beyond the noise (the first condition's factor) though below the
-      approximation share, holds a torque that grows with the speed other than a
-      friction level and a slope (``p_speed``, its shrink of HOLDOUT's equation error
-      at least ``MIN_SHRINK``, the diagnosis' least shrink that counts); each test at
-      ``FAMILY_ALPHA`` shared between the two. None of the vocabulary's models leaves
-      either shape, so neither is their approximation. Within the noise the speed shape
+      (``p_along``), or over the run (the drift shapes, ``p_drift``: a drag or a dry
+      friction level that changes with time), or, beyond the noise (the first
+      condition's factor) though below the approximation share, holds a torque that
+      grows with the speed other than a friction level and a slope (``p_speed``); each
+      counts from a shrink of HOLDOUT's equation error of ``MIN_SHRINK``, the
+      diagnosis' least shrink that counts, and each test at ``FAMILY_ALPHA`` shared
+      among the three. None of the vocabulary's models is a function of the position
+      beyond a revolution, of the time, or of the speed beyond a level and a slope, so
+      none of the three shapes is their approximation. Within the noise the speed shape
       does not count after a named effect (what it finds there is of the size of the
       vocabulary models' own small errors), nor do the current shapes anywhere after
       one: a shaft that sticks leaves a torque error at small currents that they take
@@ -137,5 +141,6 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
     if named:
         beyond = verdict_gap > UNEXPLAINED_FACTOR * noise_gap
         speed = p_speed if beyond and speed_shrink >= MIN_SHRINK else 1.0
-        return min(p_along, speed) < FAMILY_ALPHA / 2
+        drift = p_drift if drift_shrink >= MIN_SHRINK else 1.0
+        return min(p_along, speed, drift) < FAMILY_ALPHA / 3
     return min(p_shapes, p_along) < FAMILY_ALPHA / 2

@@ -167,6 +167,10 @@ class Diagnosis(JsonResult):
         level (a torque that grows with the speed other than a level and a slope), on the
         samples where the current changes least, its p-value and its shrink of HOLDOUT's
         equation error there; None with nothing named.
+    drift_structure_p_value, drift_structure_shrink : float or None
+        After named effects: the drift shapes' own test (a viscous drag and a dry
+        friction level changing over the run), its p-value (1 below the least shrink
+        that counts) and its shrink of HOLDOUT's equation error; None with nothing named.
     """
 
     gap_percent: float
@@ -190,6 +194,8 @@ class Diagnosis(JsonResult):
     position_structure_shrink: float | None = None
     speed_structure_p_value: float | None = None
     speed_structure_shrink: float | None = None
+    drift_structure_p_value: float | None = None
+    drift_structure_shrink: float | None = None
 
 
 @dataclass(frozen=True)

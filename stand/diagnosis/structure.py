@@ -43,6 +43,9 @@ combined (Bonferroni, :func:`shapes_test`): a viscous drag and a dry friction le
 drift over the run as the stand warms, ``ω·t`` and ``sign(ω)·t``, as ``i·t`` is the
 torque constant's drift. Tested among the first family's columns they would cost those
 some of their power (more columns fitted to TRAIN's noise), and the first family theirs.
+Their own test also counts after named effects (:attr:`StructureTest.families`,
+:func:`stand.diagnosis.noise.unexplained`): none of the vocabulary's models changes
+with time, so a drift is none's approximation.
 A third family (:data:`COUPLED_SHAPES`), tested apart as well, holds torques of the
 current and the speed together: a torque constant falling with the speed ``i·|ω|``, a
 friction growing with the torque carried ``|i|·sign(ω)``, and a level of the current's
@@ -121,11 +124,15 @@ class StructureTest:
         Of :func:`along_travel_test`: the share of its position columns that a function
         of the motion's phase takes on TRAIN (:func:`phase_share`); above
         :data:`MAX_PHASE_SHARE` the test is not run (``test.p_value`` 1).
+    families : tuple of PairedTest
+        Of :func:`shapes_test`: each of the :data:`FAMILIES`' own test, in their order
+        (a p-value of 1 where a family's shrink is below what counts).
     """
 
     test: PairedTest
     significant: bool
     phase_share: float = 0.0
+    families: tuple[PairedTest, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -449,7 +456,8 @@ def shapes_test(residual_train: np.ndarray, train: Signals, residual_holdout: np
     tests[1:] = [t if t.shrink >= MIN_SHRINK else replace(t, p_value=1.0) for t in tests[1:]]
     best = min(tests, key=lambda t: t.p_value)
     test = replace(best, p_value=min(1.0, len(tests) * best.p_value))
-    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA))
+    return StructureTest(test=test, significant=bool(test.p_value < FAMILY_ALPHA),
+                         families=tuple(tests))
 
 
 #: Finest order searched along the travel, as a share of one cycle over TRAIN's travel

@@ -167,10 +167,11 @@ def test_the_rule_reads_the_shape_where_the_size_cannot_decide() -> None:
     # the level is shared by the two tests
     assert not unexplained(0.5, 0.5, noise, p_shapes=0.006, p_along=0.006, **along)
     # a remainder taken as the named effect's approximation is not, when it varies along
-    # the travel (at the level it shares with the speed shapes' test after named effects)
+    # the travel (at the level it shares with the speed and the drift shapes' tests
+    # after named effects)
     assert not unexplained(10.0, 1.0, noise, named=True)
-    assert unexplained(10.0, 1.0, noise, p_along=0.004, named=True, **along)
-    assert not unexplained(10.0, 1.0, noise, p_along=0.006, named=True, **along)
+    assert unexplained(10.0, 1.0, noise, p_along=0.003, named=True, **along)
+    assert not unexplained(10.0, 1.0, noise, p_along=0.004, named=True, **along)
     # ... and shrinks HOLDOUT's equation error as much as a candidate effect must
     for named in (False, True):
         assert not unexplained(10.0 if named else 0.5, 0.5, noise, p_along=1e-60, named=named,
@@ -180,7 +181,7 @@ def test_the_rule_reads_the_shape_where_the_size_cannot_decide() -> None:
     # or beyond it
     assert not unexplained(10.0, 1.0, noise, p_shapes=1e-9, named=True)
     assert not unexplained(10.0, 0.5, noise, p_shapes=1e-9, named=True)
-    assert unexplained(10.0, 0.5, noise, p_along=0.004, named=True, **along)
+    assert unexplained(10.0, 0.5, noise, p_along=0.003, named=True, **along)
 
 
 def test_a_fan_drag_within_the_noise_gap_is_unexplained_not_none() -> None:

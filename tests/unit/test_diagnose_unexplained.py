@@ -62,7 +62,7 @@ def test_an_eddy_brake_beside_coulomb_friction_is_unexplained_after_it() -> None
                                   extra_torque=eddy), kt=MOTOR.Kt)
     assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
     assert result.speed_structure_p_value is not None
-    assert result.speed_structure_p_value < FAMILY_ALPHA / 2
+    assert result.speed_structure_p_value < FAMILY_ALPHA / 3
     assert any("grow" in note for note in result.notes), result.notes
 
 
@@ -178,6 +178,29 @@ def test_a_gap_beyond_the_effect_free_runs_spread_of_the_noise_gap_is_unexplaine
     assert result.verdict == UNEXPLAINED, result.message
 
 
+def test_a_friction_level_drifting_over_the_run_is_no_named_models_approximation() -> None:
+    noise = 0.2
+    # a named effect leaving a gap within the noise: the drift shapes count from the
+    # least shrink, at the level shared with the along-travel and speed tests
+    assert unexplained(5.0, 0.3, noise, named=True, p_drift=FAMILY_ALPHA / 4,
+                       drift_shrink=MIN_SHRINK)
+    assert not unexplained(5.0, 0.3, noise, named=True, p_drift=FAMILY_ALPHA / 2,
+                           drift_shrink=MIN_SHRINK)
+    assert not unexplained(5.0, 0.3, noise, named=True, p_drift=1e-9,
+                           drift_shrink=MIN_SHRINK / 2)
+    # benchmark seed 296 (outside set UNSEEN_6) case 8: a bearing's friction falling
+    # as its grease spreads with the travel; Coulomb friction takes its mean and leaves
+    # a gap within the noise, its level's drift p 6e-13 (shrink 0.24): the verdict was
+    # `coulomb_friction`
+    case, train, holdout = case_runs(8, 296, outside_set="unseen_6", current_mean=True)
+    assert list(case.outside) == ["friction_run_in"]
+    result = diagnose(train, holdout)
+    assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
+    assert result.drift_structure_p_value is not None
+    assert result.drift_structure_p_value < FAMILY_ALPHA / 3
+    assert any("drifting over the run" in note for note in result.notes), result.notes
+
+
 def test_the_benchmark_rescores_a_row_with_its_verdicts_share() -> None:
     # a named effect took 5 % to 4 % (4 % left beyond noise, 3 % explained): a backlash's
     # approximation, but more than a cogging's model leaves
@@ -243,5 +266,5 @@ def test_structure_along_the_travel_counts_only_with_a_candidates_shrink() -> No
     assert list(case.effects) == ["delay"]
     result = diagnose(train, holdout)
     assert result.verdict == "delay", result.message
-    assert result.position_structure_p_value < FAMILY_ALPHA / 2
+    assert result.position_structure_p_value < FAMILY_ALPHA / 3
     assert result.position_structure_shrink < MIN_SHRINK

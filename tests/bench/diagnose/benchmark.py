@@ -405,6 +405,8 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         "position_structure_shrink": result.position_structure_shrink,
         "speed_structure_p_value": result.speed_structure_p_value,
         "speed_structure_shrink": result.speed_structure_shrink,
+        "drift_structure_p_value": result.drift_structure_p_value,
+        "drift_structure_shrink": result.drift_structure_shrink,
         "gap_percent": result.gap_percent, "verdict_gap_percent": result.verdict_gap_percent,
         "noise_floor_percent": result.noise_floor_percent,
         "true_shrink": true_shrink,
@@ -459,6 +461,10 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
     left = unexplained(row["gap_percent"], row["verdict_gap_percent"], row["noise_gap_percent"],
                        p_shapes, p_along, named=bool(named), p_speed=p_speed,
                        speed_shrink=row.get("speed_structure_shrink") or 0.0,
+                       # rows written before the drift shapes counted after named effects
+                       p_drift=(1.0 if row.get("drift_structure_p_value") is None
+                                else row["drift_structure_p_value"]),
+                       drift_shrink=row.get("drift_structure_shrink") or 0.0,
                        # rows written before the along test's shrink counted: any shrink
                        along_shrink=row.get("position_structure_shrink", 1.0),
                        share=approximation_share(named))
