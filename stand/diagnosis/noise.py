@@ -12,10 +12,11 @@ the noise, at least :data:`APPROXIMATION_SHARE` of what the named effects explai
 
 The size of a gap is not all: a re-identified nominal model absorbs the linear part of
 an effect it lacks (``D/J`` takes up most of a fan drag), and a named effect the mean
-of a friction that changes along the travel. Two tests of the remainder's *shape*
-(:mod:`stand.diagnosis.structure`) decide those cases: a gap within the noise is
-``unexplained`` when the remainder holds structure no noise makes, and a remainder
-taken for the named effects' approximation is not when it varies along the travel.
+of a friction that changes along the travel or over the run. Tests of the remainder's
+*shape* (:mod:`stand.diagnosis.structure`) decide those cases: a gap within the noise
+is ``unexplained`` when the remainder holds structure no noise makes, and a remainder
+taken for the named effects' approximation is not when it varies along the travel or
+over the run, or grows with the speed beyond a level and a slope (:func:`unexplained`).
 """
 
 from __future__ import annotations
