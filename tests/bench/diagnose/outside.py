@@ -31,6 +31,24 @@ def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
     return float(math.exp(rng.uniform(math.log(low), math.log(high))))
 
 Torque = Callable[[float, float, float, float], float]
+#: What a set holds: an effect's name to the maker of its torque from its parameters
+#: and the run's duration, s.
+OutsideSet = dict[str, Callable[[dict[str, float], float], Torque]]
+
+
+class _RunClock:
+    """The simulator's time as a torque with a state sees it, one call per sub-step: a
+    run starts at the first call and wherever the time starts again."""
+
+    def __init__(self) -> None:
+        self.t: float | None = None
+
+    def step(self, t: float) -> float | None:
+        """The time since the last call, s; None at the first call of a run."""
+        last, self.t = self.t, t
+        if last is None or t < last:
+            return None
+        return t - last
 
 
 def fan_drag(p: dict[str, float], duration_s: float) -> Torque:
@@ -73,13 +91,13 @@ def elastic_load(p: dict[str, float], duration_s: float) -> Torque:
     J_l, f, zeta = p["J_load"], p["f_hz"], p["zeta"]
     k = J_l * (2 * math.pi * f) ** 2
     c = 2 * zeta * math.sqrt(k * J_l)
-    state = {"t": -1.0, "theta_l": 0.0, "omega_l": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"theta_l": 0.0, "omega_l": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the load at rest with the motor
-            state.update(t=t, theta_l=theta, omega_l=omega, started=1.0)
-        h = t - state["t"]
-        state["t"] = t
+        h = clock.step(t)
+        if h is None:  # a new run: the load at rest with the motor
+            state.update(theta_l=theta, omega_l=omega)
+            h = 0.0
         coupling = k * (theta - state["theta_l"]) + c * (omega - state["omega_l"])
         state["omega_l"] += h * coupling / J_l
         state["theta_l"] += h * state["omega_l"]
@@ -129,13 +147,12 @@ def dahl_friction(p: dict[str, float], duration_s: float) -> Torque:
     before it slides) instead of flipping at once. The deflection is carried from call
     to call, exactly for the speed held over each sub-step (no step-size limit)."""
     Tc, phi = p["Tc"], p["phi"]
-    state = {"t": -1.0, "z": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"z": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the bristles at rest
-            state.update(t=t, z=0.0, started=1.0)
-        h = t - state["t"]
-        state["t"] = t
+        h = clock.step(t)
+        if h is None:  # a new run: the bristles at rest
+            state["z"], h = 0.0, 0.0
         steady = math.copysign(phi, omega)
         state["z"] = steady + (state["z"] - steady) * math.exp(-abs(omega) * h / phi)
         return Tc * state["z"] / phi
@@ -193,13 +210,12 @@ def winding_heating(p: dict[str, float], duration_s: float) -> Torque:
     time the constant falls faster where the current is high, and it recovers where the
     current is low. Integrated exactly for the current held over each sub-step."""
     kt, kappa, iref, tau = p["Kt"], p["kappa"], p["i_ref"], p["tau"]
-    state = {"t": -1.0, "rise": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"rise": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the winding cold
-            state.update(t=t, rise=0.0, started=1.0)
-        h = t - state["t"]
-        state["t"] = t
+        h = clock.step(t)
+        if h is None:  # a new run: the winding cold
+            state["rise"], h = 0.0, 0.0
         steady = (i / iref) ** 2
         state["rise"] = steady + (state["rise"] - steady) * math.exp(-h / tau)
         return kt * kappa * min(state["rise"], 2.0) * i
@@ -222,12 +238,11 @@ def cable_windup(p: dict[str, float], duration_s: float) -> Torque:
     tightens over ``θ_s`` rad and then drags at ``T``. Not periodic in the position, and
     it follows the net travel, not the time."""
     T, scale = p["T"], p["theta_s"]
-    state = {"t": -1.0, "theta0": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"theta0": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the cable slack
-            state.update(theta0=theta, started=1.0)
-        state["t"] = t
+        if clock.step(t) is None:  # a new run: the cable slack
+            state["theta0"] = theta
         return T * math.tanh((theta - state["theta0"]) / scale)
 
     return torque
@@ -275,13 +290,12 @@ def fluid_coupling(p: dict[str, float], duration_s: float) -> Torque:
     from call to call, exactly for the motor speed held over each sub-step."""
     J_l, tau = p["J_load"], p["tau"]
     c = J_l / tau
-    state = {"t": -1.0, "omega_l": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"omega_l": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the load with the motor
-            state.update(t=t, omega_l=omega, started=1.0)
-        h = t - state["t"]
-        state["t"] = t
+        h = clock.step(t)
+        if h is None:  # a new run: the load with the motor
+            state["omega_l"], h = omega, 0.0
         coupling = c * (omega - state["omega_l"])
         state["omega_l"] = omega + (state["omega_l"] - omega) * math.exp(-h / tau)
         return coupling
@@ -295,15 +309,15 @@ def turbulent_load(p: dict[str, float], duration_s: float) -> Torque:
     process of RMS ``σ`` and correlation time ``τ``), drawn exactly at each call from
     a stream of its own for each run (``seed``), so a case draws the same torque again."""
     sigma, tau, seed = p["sigma"], p["tau"], int(p["seed"])
-    state: dict[str, Any] = {"t": -1.0, "x": 0.0, "run": -1, "rng": None}
+    clock = _RunClock()
+    state: dict[str, Any] = {"x": 0.0, "run": -1, "rng": None}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if state["rng"] is None or t < state["t"]:  # a new run: a stream of its own
+        h = clock.step(t)
+        if h is None:  # a new run: a stream of its own
             state["run"] += 1
             state["rng"] = np.random.default_rng([seed, state["run"]])
-            state.update(t=t, x=sigma * float(state["rng"].standard_normal()))
-        h = t - state["t"]
-        state["t"] = t
+            state["x"], h = sigma * float(state["rng"].standard_normal()), 0.0
         decay = math.exp(-h / tau)
         state["x"] = (state["x"] * decay
                       + sigma * math.sqrt(1.0 - decay * decay) * float(state["rng"].standard_normal()))
@@ -325,9 +339,9 @@ def ball_detent(p: dict[str, float], duration_s: float) -> Torque:
     """A spring-loaded ball detent on the load behind a reducer of ratio ``r``: once per
     load revolution the ball rides over a notch, which pulls the load back into it: the
     slope of a narrow Gaussian well of half-width ``w`` rad of the load, peaking at ``T``
-    one half-width from the notch's bottom. Conservative
-    and periodic in the position like cogging, but at ``1/r`` cycles per motor
-    revolution and over a narrow arc (many harmonics), not a whole-order sine."""
+    one half-width from the notch's bottom. Conservative and periodic in the position
+    like cogging, but at ``1/r`` cycles per motor revolution and over a narrow arc (many
+    harmonics), not a whole-order sine."""
     T, r, phi, w = p["T"], p["ratio"], p["phi"], p["width"]
     peak = math.exp(-0.5)  # the derivative of a Gaussian peaks at one width
 
@@ -347,13 +361,12 @@ def slip_clutch(p: dict[str, float], duration_s: float) -> Torque:
     J_l, slip = p["J_load"], p["T_slip"]
     tau = 0.002
     c = J_l / tau
-    state = {"t": -1.0, "omega_l": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"omega_l": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the flywheel with the shaft
-            state.update(t=t, omega_l=omega, started=1.0)
-        h = t - state["t"]
-        state["t"] = t
+        h = clock.step(t)
+        if h is None:  # a new run: the flywheel with the shaft
+            state["omega_l"], h = omega, 0.0
         carried = min(max(c * (omega - state["omega_l"]), -slip), slip)
         # the flywheel takes what the clutch carries; held, it follows the shaft exactly
         state["omega_l"] = (omega + (state["omega_l"] - omega) * math.exp(-h / tau)
@@ -369,12 +382,11 @@ def friction_run_in(p: dict[str, float], duration_s: float) -> Torque:
     with ``s`` the travel (rad), the sign smoothed over ``eps`` rad/s. Not a friction of
     constant level, and it follows the travel, not the time."""
     Tc, a, s0, eps = p["Tc"], p["a"], p["s0"], p["eps"]
-    state = {"t": -1.0, "theta": 0.0, "travel": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"theta": 0.0, "travel": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the grease settled again
-            state.update(theta=theta, travel=0.0, started=1.0)
-        state["t"] = t
+        if clock.step(t) is None:  # a new run: the grease settled again
+            state.update(theta=theta, travel=0.0)
         state["travel"] += abs(theta - state["theta"])
         state["theta"] = theta
         level = 1.0 - a * (1.0 - math.exp(-state["travel"] / s0))
@@ -401,13 +413,12 @@ def freewheel_flywheel(p: dict[str, float], duration_s: float) -> Torque:
     J_l, s, tau_l = p["J_load"], p["s"], p["tau_load"]
     tau = 0.002
     c = J_l / tau
-    state = {"t": -1.0, "omega_l": 0.0, "started": 0.0}
+    clock, state = _RunClock(), {"omega_l": 0.0}
 
     def torque(theta: float, omega: float, i: float, t: float) -> float:
-        if not state["started"] or t < state["t"]:  # a new run: the flywheel at rest
-            state.update(t=t, omega_l=0.0, started=1.0)
-        h = t - state["t"]
-        state["t"] = t
+        h = clock.step(t)
+        if h is None:  # a new run: the flywheel at rest
+            state["omega_l"], h = 0.0, 0.0
         carried = c * (omega - state["omega_l"]) if s * (omega - state["omega_l"]) > 0 else 0.0
         drag = J_l * state["omega_l"] / tau_l
         state["omega_l"] += h * (carried - drag) / J_l
@@ -426,12 +437,12 @@ def breathing_rub(p: dict[str, float], duration_s: float) -> Torque:
 
 
 #: Name to the torque it plants: the set looked at in the design of the rule.
-OUTSIDE: dict[str, Callable[[dict[str, float], float], Torque]] = {
+OUTSIDE: OutsideSet = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
     "load_unbalance": load_unbalance, "kt_drift": kt_drift,
 }
 #: The set held out of all tuning (reported apart).
-HELD_OUT: dict[str, Callable[[dict[str, float], float], Torque]] = {
+HELD_OUT: OutsideSet = {
     "elastic_load": elastic_load, "pump_load": pump_load,
     "position_friction": position_friction,
     # added with issue 21's structure tests, before any result with them was seen
@@ -439,37 +450,37 @@ HELD_OUT: dict[str, Callable[[dict[str, float], float], Torque]] = {
 }
 #: Written at stop 58 before any result with it; its result was read, and the drift
 #: shapes of :mod:`stand.diagnosis.structure` were made after it.
-UNSEEN: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN: OutsideSet = {
     "dahl_friction": dahl_friction, "current_dead_band": current_dead_band,
     "warming_drag": warming_drag,
 }
 #: Written at stop 58 before any change made after :data:`UNSEEN`'s result.
-UNSEEN_2: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN_2: OutsideSet = {
     "field_weakening": field_weakening, "dragging_brake": dragging_brake,
     "rubbing_arc": rubbing_arc,
 }
 #: Written at stop 59 before any change made at that stop.
-UNSEEN_3: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN_3: OutsideSet = {
     "winding_heating": winding_heating, "sense_asymmetry": sense_asymmetry,
     "cable_windup": cable_windup,
 }
 #: Written at stop 59 after :data:`UNSEEN_3`'s result, before any change made after it.
-UNSEEN_4: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN_4: OutsideSet = {
     "power_law_drag": power_law_drag, "shaft_rub": shaft_rub,
     "mesh_ripple": mesh_ripple, "offset_drift": offset_drift,
 }
 #: Written at stop 60 before any change made at that stop.
-UNSEEN_5: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN_5: OutsideSet = {
     "fluid_coupling": fluid_coupling, "turbulent_load": turbulent_load,
     "one_way_drag": one_way_drag,
 }
 #: Written at stop 60 after :data:`UNSEEN_5`'s result, before any change made after it.
-UNSEEN_6: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN_6: OutsideSet = {
     "ball_detent": ball_detent, "slip_clutch": slip_clutch,
     "friction_run_in": friction_run_in,
 }
 #: Written at stop 60 after :data:`UNSEEN_6`'s result, before any change made after it.
-UNSEEN_7: dict[str, Callable[[dict[str, float], float], Torque]] = {
+UNSEEN_7: OutsideSet = {
     "current_clipping": current_clipping, "freewheel_flywheel": freewheel_flywheel,
     "breathing_rub": breathing_rub,
 }
