@@ -1,6 +1,6 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
 (tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
-UNSEEN_2 to UNSEEN_7. No diagnosis runs here: the last six are only ever run to be
+UNSEEN_2 to UNSEEN_8. No diagnosis runs here: the last seven are only ever run to be
 reported."""
 
 from __future__ import annotations
@@ -19,8 +19,10 @@ from tests.bench.diagnose.outside import (
     UNSEEN_5,
     UNSEEN_6,
     UNSEEN_7,
+    UNSEEN_8,
     ball_detent,
     breathing_rub,
+    brush_timing,
     cable_windup,
     current_clipping,
     current_dead_band,
@@ -29,12 +31,14 @@ from tests.bench.diagnose.outside import (
     draw_outside,
     field_weakening,
     fluid_coupling,
+    frame_vibration,
     freewheel_flywheel,
     friction_run_in,
     mesh_ripple,
     offset_drift,
     one_way_drag,
     power_law_drag,
+    regen_clipping,
     rubbing_arc,
     sense_asymmetry,
     shaft_rub,
@@ -305,8 +309,38 @@ def test_the_breathing_rub_swells_and_fades_in_time_whatever_the_position() -> N
     assert torque(123.0, -5.0, 0.0, 1.0) == pytest.approx(-0.01)
 
 
+
+def test_the_frame_vibration_shakes_at_its_frequency_whatever_the_shaft_does() -> None:
+    torque = frame_vibration({"T": 0.01, "f_hz": 50.0, "phi": 0.0}, 10.0)
+    assert [torque(0.0, 5.0, 1.0, t) for t in (0.0, 0.005, 0.015)] == pytest.approx(
+        [0.0, 0.01, -0.01], abs=1e-12)
+    assert torque(123.0, -7.0, -3.0, 0.005) == pytest.approx(0.01)
+
+
+def test_the_regen_clipping_loses_beyond_the_limit_only_while_braking() -> None:
+    torque = regen_clipping({"Kt": 0.1, "I_lim": 2.0}, 10.0)
+    # driving, whatever the current: nothing lost
+    assert [torque(0.0, w, i, 0.0) for w, i in ((5.0, 3.0), (-5.0, -3.0), (5.0, 1.0))] \
+        == [0.0, 0.0, 0.0]
+    # braking: within the limit nothing, beyond it the excess
+    assert torque(0.0, 5.0, -1.5, 0.0) == 0.0
+    assert torque(0.0, 5.0, -3.0, 0.0) == pytest.approx(-0.1)
+    assert torque(0.0, -5.0, 3.5, 0.0) == pytest.approx(0.15)
+
+
+def test_the_brush_timing_changes_the_torque_constant_with_the_direction_of_rotation() -> None:
+    torque = brush_timing({"Kt": 0.1, "eps": 0.2, "s": 1.0, "eps_w": 1e-6}, 10.0)
+    # the motor delivers Kt·i·(1 ± ε): the loss is −Kt·ε·i one way, +Kt·ε·i the other
+    assert torque(0.0, 5.0, 2.0, 0.0) == pytest.approx(-0.04)
+    assert torque(0.0, -5.0, 2.0, 0.0) == pytest.approx(0.04)
+    assert torque(0.0, -5.0, -2.0, 0.0) == pytest.approx(-0.04)
+    assert torque(0.0, 5.0, 0.0, 0.0) == 0.0
+    other = brush_timing({"Kt": 0.1, "eps": 0.2, "s": -1.0, "eps_w": 1e-6}, 10.0)
+    assert other(0.0, 5.0, 2.0, 0.0) == pytest.approx(0.04)
+
+
 @pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4", "unseen_5",
-                                  "unseen_6", "unseen_7"])
+                                  "unseen_6", "unseen_7", "unseen_8"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -323,4 +357,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
     assert OUTSIDE_SETS["unseen"] is UNSEEN and OUTSIDE_SETS["unseen_2"] is UNSEEN_2
     assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3 and OUTSIDE_SETS["unseen_4"] is UNSEEN_4
     assert OUTSIDE_SETS["unseen_5"] is UNSEEN_5 and OUTSIDE_SETS["unseen_6"] is UNSEEN_6
-    assert OUTSIDE_SETS["unseen_7"] is UNSEEN_7
+    assert OUTSIDE_SETS["unseen_7"] is UNSEEN_7 and OUTSIDE_SETS["unseen_8"] is UNSEEN_8

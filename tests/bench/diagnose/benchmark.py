@@ -48,6 +48,7 @@ from tests.bench.diagnose.outside import (
     UNSEEN_5,
     UNSEEN_6,
     UNSEEN_7,
+    UNSEEN_8,
     draw_outside,
     outside_torque,
 )
@@ -109,7 +110,7 @@ class Case:
 OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN,
                 "unseen_2": UNSEEN_2, "unseen_3": UNSEEN_3, "unseen_4": UNSEEN_4,
                 "unseen_5": UNSEEN_5, "unseen_6": UNSEEN_6,
-                "unseen_7": UNSEEN_7}
+                "unseen_7": UNSEEN_7, "unseen_8": UNSEEN_8}
 
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,

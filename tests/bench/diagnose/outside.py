@@ -2,7 +2,7 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Nine sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Ten sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
@@ -13,8 +13,9 @@ at that stop, and run once with main and once with the change; :data:`UNSEEN_4`,
 written at stop 59 after UNSEEN_3's result and before any change made after it;
 :data:`UNSEEN_5`, written at stop 60 before any change made at that stop;
 :data:`UNSEEN_6`, written at stop 60 after UNSEEN_5's result and before any change made
-after it; and :data:`UNSEEN_7`, written at stop 60 after UNSEEN_6's result and before
-any change made after it. Each torque opposes the motor (it is subtracted from the drive
+after it; :data:`UNSEEN_7`, written at stop 60 after UNSEEN_6's result and before
+any change made after it; and :data:`UNSEEN_8`, written at stop 61 before any change
+made at that stop. Each torque opposes the motor (it is subtracted from the drive
 torque), N·m.
 """
 
@@ -436,6 +437,40 @@ def breathing_rub(p: dict[str, float], duration_s: float) -> Torque:
                                        * math.tanh(omega / eps))
 
 
+def frame_vibration(p: dict[str, float], duration_s: float) -> Torque:
+    """A neighbouring machine shaking the stand's frame: a torque at its own fixed
+    frequency, ``T·sin(2π·f·t + φ)`` with ``f`` tens of hertz (a compressor, a fan, a
+    motor at mains speed), far above a pump's strokes; periodic in time, not in
+    position, and whatever the shaft does."""
+    T, f, phi = p["T"], p["f_hz"], p["phi"]
+    return lambda theta, omega, i, t: T * math.sin(2 * math.pi * f * t + phi)
+
+
+def regen_clipping(p: dict[str, float], duration_s: float) -> Torque:
+    """A drive without a brake resistor: its DC link cannot take back the energy of
+    braking, so while the current brakes the shaft (``i·ω < 0``) its bridge delivers at
+    most ``I_lim`` while the record shows the demand ``i``; the loss
+    ``Kt·(i − clip(i, −I_lim, I_lim))`` while braking, nothing while driving."""
+    kt, lim = p["Kt"], p["I_lim"]
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if i * omega >= 0.0:
+            return 0.0
+        return kt * (i - min(max(i, -lim), lim))
+
+    return torque
+
+
+def brush_timing(p: dict[str, float], duration_s: float) -> Torque:
+    """A brushed motor whose brushes sit off the magnetic neutral (timed for one
+    direction of rotation ``s``): its torque per ampere is ``1 + ε`` times the nominal
+    turning in direction ``s`` and ``1 − ε`` times turning the other way; the loss
+    ``−Kt·ε·s·sign(ω)·i``, the sign smoothed over ``eps_w`` rad/s. A torque constant
+    that changes with the direction of rotation, not with the current's."""
+    kt, e, s, eps_w = p["Kt"], p["eps"], p["s"], p["eps_w"]
+    return lambda theta, omega, i, t: -kt * e * s * math.tanh(omega / eps_w) * i
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: OutsideSet = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -484,9 +519,14 @@ UNSEEN_7: OutsideSet = {
     "current_clipping": current_clipping, "freewheel_flywheel": freewheel_flywheel,
     "breathing_rub": breathing_rub,
 }
+#: Written at stop 61 before any change made at that stop.
+UNSEEN_8: OutsideSet = {
+    "frame_vibration": frame_vibration, "regen_clipping": regen_clipping,
+    "brush_timing": brush_timing,
+}
 #: Every outside effect by name.
 ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4,
-               **UNSEEN_5, **UNSEEN_6, **UNSEEN_7}
+               **UNSEEN_5, **UNSEEN_6, **UNSEEN_7, **UNSEEN_8}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -582,6 +622,14 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
     if name == "breathing_rub":
         return {"Tc": strength * torque_ref, "f_hz": _log_uniform(rng, 0.05, 0.5),
                 "phi": float(rng.uniform(0, 2 * math.pi)), "eps": 0.01 * omega_ref}
+    if name == "frame_vibration":
+        return {"T": strength * torque_ref, "f_hz": _log_uniform(rng, 10.0, 0.15 / dt_s),
+                "phi": float(rng.uniform(0, 2 * math.pi))}
+    if name == "regen_clipping":
+        return {"Kt": Kt, "I_lim": current_ref * float(rng.uniform(0.7, 1.5)) / (1 + 5 * strength)}
+    if name == "brush_timing":
+        return {"Kt": Kt, "eps": strength, "s": float(rng.choice([-1.0, 1.0])),
+                "eps_w": 0.01 * omega_ref}
     raise KeyError(name)
 
 
