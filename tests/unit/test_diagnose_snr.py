@@ -89,6 +89,17 @@ def test_a_case_drawn_on_another_stand_is_measured_against_that_stands_twin() ->
     assert reported >= MIN_EFFECT_SNR
 
 
+def test_an_outside_effect_that_never_shows_on_its_stand_is_drawn_on_another() -> None:
+    # case 49 of seed 300 (UNSEEN_8): a drive's braking limit that its first stand's run
+    # never brakes beyond, whatever its draw, as the vocabulary's effects are: on another
+    # stand (it was kept at SNR 0, an effect-free case labelled outside)
+    first = draw_case(49, 300, outside_share=0.3, outside_set="unseen_8", min_snr=0.0)
+    case = draw_case(49, 300, outside_share=0.3, outside_set="unseen_8")
+    assert set(first.outside) == set(case.outside) == {"regen_clipping"}
+    assert first.snr is not None and first.snr < 0.5 * MIN_EFFECT_SNR
+    assert case.draws > EFFECT_DRAWS and case.motor != first.motor
+    assert case.snr is not None and case.snr >= MIN_EFFECT_SNR
+
 def test_backlash_load_rebounds_with_the_restitution() -> None:
     dt, speed, gap = 1e-3, 2.0, 0.01
     theta = speed * dt * np.arange(40)

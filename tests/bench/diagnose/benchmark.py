@@ -135,7 +135,8 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     stand = _draw_stand(index, seed, rng)
     side = np.random.default_rng([seed, index, 11])
     if side.random() < outside_share:
-        return _draw_outside_case(stand, side, min_snr, duration_s, OUTSIDE_SETS[outside_set])
+        return _draw_outside_case(stand, side, min_snr, duration_s, OUTSIDE_SETS[outside_set],
+                                  (index, seed))
     truth = _draw_truth(rng)
     draws = 0
     for attempt in range(STAND_DRAWS):
@@ -182,20 +183,28 @@ def case_class(index: int, seed: int, outside_share: float = 0.0) -> str:
 
 
 def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
-                       duration_s: float, names: dict[str, Any]) -> Case:
+                       duration_s: float, names: dict[str, Any], key: tuple[int, int]
+                       ) -> Case:
     """``stand`` with one outside effect of ``names``, drawn until its SNR reaches
-    ``min_snr``."""
+    ``min_snr``; as for the vocabulary's effects, a stand on which it never does (a
+    drive's braking limit on a run that never brakes hard) is drawn anew from the case's
+    ``key`` (index, seed), up to ``STAND_DRAWS`` times, the effect kept."""
     name = str(rng.choice(sorted(names)))
-    case = stand
-    for draw in range(1, EFFECT_DRAWS + 1):
-        strength = _log_uniform(rng, *STRENGTH_RANGE)
-        params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand), stand.current_ref,
-                              stand.omega_ref, strength, stand.motor.J, stand.dt_s,
-                              duration_s=duration_s)
-        case = replace(stand, outside={name: params}, truth=[f"outside:{name}"], draws=draw)
-        case.snr = case_snr(case, duration_s)
-        if case.snr >= min_snr:
-            break
+    case, draws = stand, 0
+    for attempt in range(STAND_DRAWS):
+        if attempt:
+            stand = _draw_stand(*key, np.random.default_rng([key[1], key[0], attempt]))
+        for _ in range(EFFECT_DRAWS):
+            draws += 1
+            strength = _log_uniform(rng, *STRENGTH_RANGE)
+            params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand),
+                                  stand.current_ref, stand.omega_ref, strength, stand.motor.J,
+                                  stand.dt_s, duration_s=duration_s)
+            case = replace(stand, outside={name: params}, truth=[f"outside:{name}"],
+                           draws=draws)
+            case.snr = case_snr(case, duration_s)
+            if case.snr >= min_snr:
+                return case
     return case
 
 
