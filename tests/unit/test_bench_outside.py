@@ -309,7 +309,6 @@ def test_the_breathing_rub_swells_and_fades_in_time_whatever_the_position() -> N
     assert torque(123.0, -5.0, 0.0, 1.0) == pytest.approx(-0.01)
 
 
-
 def test_the_frame_vibration_shakes_at_its_frequency_whatever_the_shaft_does() -> None:
     torque = frame_vibration({"T": 0.01, "f_hz": 50.0, "phi": 0.0}, 10.0)
     assert [torque(0.0, 5.0, 1.0, t) for t in (0.0, 0.005, 0.015)] == pytest.approx(

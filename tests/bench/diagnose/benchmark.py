@@ -136,7 +136,7 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     side = np.random.default_rng([seed, index, 11])
     if side.random() < outside_share:
         return _draw_outside_case(stand, side, min_snr, duration_s, OUTSIDE_SETS[outside_set],
-                                  (index, seed))
+                                  index=index, seed=seed)
     truth = _draw_truth(rng)
     draws = 0
     for attempt in range(STAND_DRAWS):
@@ -183,17 +183,17 @@ def case_class(index: int, seed: int, outside_share: float = 0.0) -> str:
 
 
 def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
-                       duration_s: float, names: dict[str, Any], key: tuple[int, int]
+                       duration_s: float, names: dict[str, Any], *, index: int, seed: int
                        ) -> Case:
-    """``stand`` with one outside effect of ``names``, drawn until its SNR reaches
-    ``min_snr``; as for the vocabulary's effects, a stand on which it never does (a
-    drive's braking limit on a run that never brakes hard) is drawn anew from the case's
-    ``key`` (index, seed), up to ``STAND_DRAWS`` times, the effect kept."""
+    """``stand`` (case ``index`` of ``seed``) with one outside effect of ``names``, drawn
+    until its SNR reaches ``min_snr``; as for the vocabulary's effects, a stand on which
+    it never does (a drive's braking limit on a run that never brakes hard) is drawn
+    anew, as :func:`draw_case` draws it, up to ``STAND_DRAWS`` times, the effect kept."""
     name = str(rng.choice(sorted(names)))
     case, draws = stand, 0
     for attempt in range(STAND_DRAWS):
         if attempt:
-            stand = _draw_stand(*key, np.random.default_rng([key[1], key[0], attempt]))
+            stand = _draw_stand(index, seed, np.random.default_rng([seed, index, attempt]))
         for _ in range(EFFECT_DRAWS):
             draws += 1
             strength = _log_uniform(rng, *STRENGTH_RANGE)
