@@ -50,13 +50,14 @@ from stand.diagnosis.noise import (
     noise_floor,
     noise_gap_percent,
     unexplained,
+    within_noise,
 )
 from stand.diagnosis.notes import aliases, limits
 from stand.diagnosis.report import Diagnosis, EffectScore, Traces
 from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
 from stand.diagnosis.signals import Signals, prepare
-from stand.diagnosis.significance import PairedTest, paired_improvement
+from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK, PairedTest, paired_improvement
 from stand.diagnosis.structure import (
     AFTER_NAMED_NUISANCE,
     DRIFT_SHAPES,
@@ -274,6 +275,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
                                  along.test.p_value, speed, share, drift)
+               + _within_noise_note(final.gap, noise_gap, structure.test.p_value,
+                                    along.test, bool(chosen))
                + _phase_note(along.phase_share)),
         steps=steps), traces
 
@@ -290,6 +293,22 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
             f"{explained_percent(nominal_gap, verdict_gap):.2f} % they explain: taken as "
             "their models' approximation of the physics, not as another effect; "
             "residual_where locates it"]
+
+
+def _within_noise_note(verdict_gap: float, noise_gap: float, p_shapes: float,
+                       along: PairedTest, named: bool) -> list[str]:
+    """Why a remainder whose shape a test finds is not ``unexplained``: the gap is
+    within the noise gap (:func:`stand.diagnosis.noise.within_noise`)."""
+    p_along = along.p_value if along.shrink >= MIN_SHRINK else 1.0
+    if not within_noise(verdict_gap, noise_gap) or min(p_shapes, p_along) >= FAMILY_ALPHA / 2:
+        return []
+    return [f"the equation error {'left ' if named else ''}holds a shape (speed, "
+            f"current-level, time, drift and current-speed shapes p = {p_shapes:.2g}, along "
+            f"the travel p = {p_along:.2g}), but the gap {'left ' if named else ''}"
+            f"({verdict_gap:.2f} %) is within what noise explains ({noise_gap:.2f} %): not "
+            "`unexplained`, which is a gap beyond the noise (CONTRACT §3); the nominal "
+            "model's own structure (a quantized motion that repeats, a speed loop's kicks "
+            "between samples) shows there too"]
 
 
 def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,

@@ -1,10 +1,12 @@
 """Structure a model leaves that no noise makes: a held-out test of the equation error.
 
-A gap within the noise gap does not prove that nothing beyond noise is there: when the
+A gap near the noise gap does not prove that nothing beyond noise is there: when the
 nominal model is re-identified, ``Kt/J`` and ``D/J`` absorb the linear part of a fan
 drag (``ω|ω|``) or of a saturating torque constant, and what remains in the simulated
 speed is small. What remains in the equation error (the acceleration the model misses)
-has a shape, though, and noise has none that repeats from run to run.
+has a shape, though, and noise has none that repeats from run to run. (The verdict
+reads the shapes only of a gap beyond the noise gap itself:
+:func:`stand.diagnosis.noise.within_noise`.)
 
 The test: shapes that no vocabulary effect produces and the physics of a stand
 plausibly does (torque growing faster than the speed, ``ω|ω|`` and ``ω³``; a torque

@@ -181,6 +181,26 @@ def test_a_gap_beyond_the_effect_free_runs_spread_of_the_noise_gap_is_unexplaine
     assert result.verdict == UNEXPLAINED, result.message
 
 
+def test_a_gap_within_the_noise_gap_is_never_unexplained_whatever_its_shape() -> None:
+    # CONTRACT §3: `unexplained` is a gap beyond the noise; shapes that pass their tests
+    # at any level do not make one of a gap within it, named effects or not
+    strong = {"p_shapes": 1e-12, "p_along": 1e-12, "along_shrink": 0.5}
+    assert not unexplained(0.99, 0.99, 1.0, **strong)
+    assert unexplained(1.01, 1.01, 1.0, **strong)
+    after = {"p_along": 1e-12, "along_shrink": 0.5, "p_drift": 1e-12, "drift_shrink": 0.5}
+    assert not unexplained(5.0, 0.99, 1.0, named=True, **after)
+    assert unexplained(5.0, 1.01, 1.0, named=True, **after)
+    # fresh effect-free benchmark seed 298 case 273: a current sine of 0.9 Hz; the
+    # nominal gap 0.74 times the noise gap, the quantized sine's own shapes p 4e-12 and
+    # 3e-23 along the travel: the verdict was `unexplained`
+    case, train, holdout = case_runs(273, 298, current_mean=True)
+    assert case.truth == ["none"] and case.kind == "sine"
+    result = diagnose(train, holdout)
+    assert result.gap_percent < result.noise_gap_percent
+    assert result.verdict == "none", result.message
+    assert any("within what noise explains" in note and "CONTRACT §3" in note
+               for note in result.notes), result.notes
+
 def test_a_friction_level_drifting_over_the_run_is_no_named_models_approximation() -> None:
     noise = 0.2
     # a named effect leaving a gap within the noise: the drift shapes count from the
