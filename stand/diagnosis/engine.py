@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -57,7 +58,7 @@ from stand.diagnosis.report import Diagnosis, EffectScore, Traces
 from stand.diagnosis.scoring import Bench
 from stand.diagnosis.selection import improvement, select
 from stand.diagnosis.signals import Signals, prepare
-from stand.diagnosis.significance import FAMILY_ALPHA, MIN_SHRINK, PairedTest, paired_improvement
+from stand.diagnosis.significance import PairedTest, paired_improvement
 from stand.diagnosis.structure import (
     AFTER_NAMED_NUISANCE,
     DRIFT_SHAPES,
@@ -231,13 +232,15 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
              if chosen else None)
     drift = structure.families[FAMILIES.index(DRIFT_SHAPES)] if chosen else None
     share = effects.approximation_share(chosen)
-    left = unexplained(base.gap, final.gap, noise_gap, structure.test.p_value,
-                       along.test.p_value, named=bool(chosen),
-                       along_shrink=along.test.shrink,
-                       p_speed=speed.p_value if speed else 1.0,
-                       speed_shrink=speed.shrink if speed else 0.0, share=share,
-                       p_drift=drift.p_value if drift else 1.0,
-                       drift_shrink=drift.shrink if drift else 0.0)
+    rule = partial(unexplained, base.gap, final.gap, noise_gap, structure.test.p_value,
+                   along.test.p_value, named=bool(chosen), along_shrink=along.test.shrink,
+                   p_speed=speed.p_value if speed else 1.0,
+                   speed_shrink=speed.shrink if speed else 0.0, share=share,
+                   p_drift=drift.p_value if drift else 1.0,
+                   drift_shrink=drift.shrink if drift else 0.0)
+    left = rule()
+    # a shape the rule reads beyond the noise gap, found within it: said in a note
+    held = within_noise(final.gap, noise_gap) and rule(hold_within_noise=False)
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -275,8 +278,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
                                  along.test.p_value, speed, share, drift)
-               + _within_noise_note(final.gap, noise_gap, structure.test.p_value,
-                                    along.test, bool(chosen))
+               + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
+                                    along.test.p_value, drift, bool(chosen))
                + _phase_note(along.phase_share)),
         steps=steps), traces
 
@@ -295,15 +298,18 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
             "residual_where locates it"]
 
 
-def _within_noise_note(verdict_gap: float, noise_gap: float, p_shapes: float,
-                       along: PairedTest, named: bool) -> list[str]:
-    """Why a remainder whose shape a test finds is not ``unexplained``: the gap is
-    within the noise gap (:func:`stand.diagnosis.noise.within_noise`)."""
-    p_along = along.p_value if along.shrink >= MIN_SHRINK else 1.0
-    if not within_noise(verdict_gap, noise_gap) or min(p_shapes, p_along) >= FAMILY_ALPHA / 2:
+def _within_noise_note(held: bool, verdict_gap: float, noise_gap: float, p_shapes: float,
+                       p_along: float, drift: PairedTest | None, named: bool) -> list[str]:
+    """Why a remainder whose shape the rule reads is not ``unexplained`` (``held``: the
+    rule finds the shape, and the gap is within the noise gap,
+    :func:`stand.diagnosis.noise.within_noise`); the shapes it reads there (``drift``:
+    the drift shapes' test after named effects, None with nothing named)."""
+    if not held:
         return []
-    return [f"the equation error {'left ' if named else ''}holds a shape (speed, "
-            f"current-level, time, drift and current-speed shapes p = {p_shapes:.2g}, along "
+    shapes = (f"a drag or friction level drifting over the run p = {drift.p_value:.2g}"
+              if drift else f"speed, current-level, time, drift and current-speed shapes "
+                            f"p = {p_shapes:.2g}")
+    return [f"the equation error {'left ' if named else ''}holds a shape ({shapes}, along "
             f"the travel p = {p_along:.2g}), but the gap {'left ' if named else ''}"
             f"({verdict_gap:.2f} %) is within what noise explains ({noise_gap:.2f} %): not "
             "`unexplained`, which is a gap beyond the noise (CONTRACT §3); the nominal "

@@ -118,7 +118,8 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
                 p_shapes: float = 1.0, p_along: float = 1.0, named: bool = False,
                 p_speed: float = 1.0, speed_shrink: float = 0.0,
                 along_shrink: float = 0.0, share: float = APPROXIMATION_SHARE,
-                p_drift: float = 1.0, drift_shrink: float = 0.0) -> bool:
+                p_drift: float = 1.0, drift_shrink: float = 0.0,
+                hold_within_noise: bool = True) -> bool:
     """Whether the gap the verdict's effects leave (%, ``verdict_gap``; the nominal
     model's ``nominal_gap`` when none is ``named``) is ``unexplained``.
 
@@ -134,7 +135,9 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
     (``structure_test`` with ``SPEED_SHAPES``, ``AFTER_NAMED_NUISANCE`` and
     ``steady_current``).
 
-    * A gap the verdict leaves within ``noise_gap`` itself: never (:func:`within_noise`).
+    * A gap the verdict leaves within ``noise_gap`` itself: never (:func:`within_noise`;
+      ``hold_within_noise=False`` asks what the rest of the rule says of it, for the
+      note that a shape was found there).
     * Nothing named and a gap within ``UNEXPLAINED_FACTOR`` times ``noise_gap``: only
       if either test passes at ``FAMILY_ALPHA`` shared between the two (Bonferroni):
       ``none`` claims nothing beyond noise, and the gap can be small because the
@@ -157,7 +160,7 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
       one: a shaft that sticks leaves a torque error at small currents that they take
       in part.
     """
-    if within_noise(verdict_gap, noise_gap):
+    if hold_within_noise and within_noise(verdict_gap, noise_gap):
         return False
     if beyond_approximation(nominal_gap, verdict_gap, noise_gap, share):
         return True
