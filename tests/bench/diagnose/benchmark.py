@@ -18,7 +18,7 @@ import math
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -139,20 +139,28 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
                                   index=index, seed=seed)
     truth = _draw_truth(rng)
     draws = 0
-    for attempt in range(STAND_DRAWS):
-        if attempt:
-            rng = np.random.default_rng([seed, index, attempt])
-            stand = _draw_stand(index, seed, rng)
+    for on, stream in _stands(stand, rng, index, seed):
         for _ in range(EFFECT_DRAWS):
             draws += 1
-            effects = {name: _draw_effect(name, rng, stand) for name in truth}
-            case = replace(stand, effects=effects, truth=truth or ["none"], draws=draws)
+            effects = {name: _draw_effect(name, stream, on) for name in truth}
+            case = replace(on, effects=effects, truth=truth or ["none"], draws=draws)
             if not effects or min_snr <= 0:
                 return case
             case.snr = case_snr(case, duration_s)
             if case.snr >= min_snr:
                 return case
     return case
+
+
+def _stands(stand: Case, rng: np.random.Generator, index: int, seed: int
+            ) -> Iterator[tuple[Case, np.random.Generator]]:
+    """The stands a case's effects are drawn on, each with the stream they are drawn
+    from: case ``index`` of ``seed``'s own ``stand`` and ``rng``, then up to
+    ``STAND_DRAWS − 1`` stands drawn anew, each from a stream of its own."""
+    yield stand, rng
+    for attempt in range(1, STAND_DRAWS):
+        fresh = np.random.default_rng([seed, index, attempt])
+        yield _draw_stand(index, seed, fresh), fresh
 
 
 def _draw_truth(rng: np.random.Generator) -> list[str]:
@@ -188,20 +196,17 @@ def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
     """``stand`` (case ``index`` of ``seed``) with one outside effect of ``names``, drawn
     until its SNR reaches ``min_snr``; as for the vocabulary's effects, a stand on which
     it never does (a drive's braking limit on a run that never brakes hard) is drawn
-    anew, as :func:`draw_case` draws it, up to ``STAND_DRAWS`` times, the effect kept."""
+    anew (:func:`_stands`), the effect kept."""
     name = str(rng.choice(sorted(names)))
     case, draws = stand, 0
-    for attempt in range(STAND_DRAWS):
-        if attempt:
-            stand = _draw_stand(index, seed, np.random.default_rng([seed, index, attempt]))
+    for on, _ in _stands(stand, rng, index, seed):
         for _ in range(EFFECT_DRAWS):
             draws += 1
             strength = _log_uniform(rng, *STRENGTH_RANGE)
-            params = draw_outside(name, rng, stand.motor.Kt, _torque_ref(stand),
-                                  stand.current_ref, stand.omega_ref, strength, stand.motor.J,
-                                  stand.dt_s, duration_s=duration_s)
-            case = replace(stand, outside={name: params}, truth=[f"outside:{name}"],
-                           draws=draws)
+            params = draw_outside(name, rng, on.motor.Kt, _torque_ref(on), on.current_ref,
+                                  on.omega_ref, strength, on.motor.J, on.dt_s,
+                                  duration_s=duration_s)
+            case = replace(on, outside={name: params}, truth=[f"outside:{name}"], draws=draws)
             case.snr = case_snr(case, duration_s)
             if case.snr >= min_snr:
                 return case
