@@ -121,7 +121,8 @@ def test_the_period_mean_closes_a_speed_loops_gap_between_samples(tmp_path) -> N
     # Benchmark case 423 of dev seed 274: no effect, a speed loop following a sampled
     # sine (a target that changes at every sample: the loop's law cannot be fitted), 3 ms.
     # Driven by its samples the nominal model leaves 12 % of holdout speed, 90 times the
-    # noise gap; driven by the drive's period means it is within the noise (UNEXPLAINED_FACTOR times its gap).
+    # noise gap; driven by the drive's period means it is within the noise
+    # (UNEXPLAINED_FACTOR times its gap).
     case = draw_case(423, 274)
     assert not case.effects and not case.outside and case.mode == "speed"
     runs = [read_run(write_run(tmp_path / f"{k}.csv",
