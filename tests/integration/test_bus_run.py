@@ -31,14 +31,15 @@ SAME_PARAMETERS_RTOL = 0.01
 #: One encoder count of the 2500-line encoder (4x), rad: the bus may round a position
 #: across a count edge where the direct simulation did not (targets travel as integers).
 ONE_COUNT_RAD = 2 * math.pi / 10_000
-#: Real-time test: samples that must be kept for the attribution check to mean something
-#: (each compared to one encoder count with the direct simulation). 25 was missed once
-#: (22 kept) with the host under the guest at load 11.
+#: Real-time test: samples that must be kept, over all its runs, for the attribution check
+#: to mean something (each compared to one encoder count with the direct simulation). 25 in
+#: one run was missed once (22 kept) with the host under the guest at load 11.
 MIN_KEPT = 10
-#: Real-time runs tried until one keeps those: a loaded host made the master late at the
-#: very start once (window 2, 1 of 3 samples kept before it); every run's kept samples are
-#: checked all the same.
-REALTIME_ATTEMPTS = 3
+#: Real-time runs tried until together they keep those: a loaded host made the master late
+#: at the very start once (window 2, 1 of 3 samples kept before it), and once a starved
+#: master kept no sample of a whole run (its record has no file); every run's kept samples
+#: are checked all the same.
+REALTIME_ATTEMPTS = 5
 #: Current travels in per mille of the 1 A rated current: 1 mA steps.
 CURRENT_QUANTUM_A = 1e-3
 
@@ -142,6 +143,7 @@ def test_realtime_samples_are_never_misattributed(can_config: BusConfig, tmp_pat
     direct = simulate_stand_procedure(procedure, stand, load_motor(stand.motor_in),
                                       load_motor(stand.motor_out), seed=SEED)
     kept: list[str] = []
+    checked = 0
     for attempt in range(REALTIME_ATTEMPTS):
         with StandBus("cycloidal_two_motor", can_config, simulate=True, seed=SEED,
                       heartbeat_period_s=CALM_HEARTBEAT_S) as bus:
@@ -155,7 +157,11 @@ def test_realtime_samples_are_never_misattributed(can_config: BusConfig, tmp_pat
         assert record.late_targets == len(late_targets)
         assert not late_targets or not record.complete
         first_late = late_targets[0] if late_targets else 100
-        text = Path(record.path).read_text().splitlines()  # type: ignore[arg-type]
+        if record.path is None:  # every sample lost, counted: nothing to misattribute
+            assert record.lost and max(record.lost.values()) > 0
+            kept.append(f"none kept, lost {record.lost}")
+            continue
+        text = Path(record.path).read_text().splitlines()
         header = text[0].split(",")
         rows = np.array([[float(v) for v in line.split(",")] for line in text[1:]])
         k = np.rint(rows[:, header.index("time_s")] / procedure.sample_period_s).astype(int)
@@ -167,6 +173,7 @@ def test_realtime_samples_are_never_misattributed(can_config: BusConfig, tmp_pat
             error = np.abs(rows[:, header.index(column)] - direct[column][k])
             assert not len(error) or np.max(error) <= 1.01 * ONE_COUNT_RAD, column
         kept.append(f"{len(k)} kept before the first late target {first_late}, lost {record.lost}")
-        if len(k) >= min(MIN_KEPT, first_late):
+        checked += len(k)
+        if checked >= MIN_KEPT or len(k) >= first_late:
             return
-    pytest.fail(f"no run kept enough samples to check: {kept}")
+    pytest.fail(f"the runs kept too few samples to check: {kept}")
