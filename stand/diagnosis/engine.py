@@ -279,7 +279,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                + _structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
                                  along.test.p_value, speed, share, drift)
                + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
-                                    along.test.p_value, drift, bool(chosen))
+                                    along.test.p_value, speed, drift)
                + _phase_note(along.phase_share)),
         steps=steps), traces
 
@@ -299,16 +299,22 @@ def _approximation_note(nominal_gap: float, verdict_gap: float, noise_gap: float
 
 
 def _within_noise_note(held: bool, verdict_gap: float, noise_gap: float, p_shapes: float,
-                       p_along: float, drift: PairedTest | None, named: bool) -> list[str]:
+                       p_along: float, speed: PairedTest | None,
+                       drift: PairedTest | None) -> list[str]:
     """Why a remainder whose shape the rule reads is not ``unexplained`` (``held``: the
     rule finds the shape, and the gap is within the noise gap,
-    :func:`stand.diagnosis.noise.within_noise`); the shapes it reads there (``drift``:
-    the drift shapes' test after named effects, None with nothing named)."""
+    :func:`stand.diagnosis.noise.within_noise`); the shapes it reads there (``speed``
+    and ``drift``: the speed and the drift shapes' tests after named effects, None with
+    nothing named)."""
     if not held:
         return []
-    shapes = (f"a drag or friction level drifting over the run p = {drift.p_value:.2g}"
-              if drift else f"speed, current-level, time, drift and current-speed shapes "
-                            f"p = {p_shapes:.2g}")
+    named = speed is not None and drift is not None
+    if speed is not None and drift is not None:
+        shapes = (f"a torque growing with the speed beyond a friction level and a slope "
+                  f"p = {speed.p_value:.2g}, a drag or friction level drifting over the "
+                  f"run p = {drift.p_value:.2g}")
+    else:
+        shapes = f"speed, current-level, time, drift and current-speed shapes p = {p_shapes:.2g}"
     return [f"the equation error {'left ' if named else ''}holds a shape ({shapes}, along "
             f"the travel p = {p_along:.2g}), but the gap {'left ' if named else ''}"
             f"({verdict_gap:.2f} %) is within what noise explains ({noise_gap:.2f} %): not "
