@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--outside-set", choices=tuple(OUTSIDE_SETS), default="tuning",
                         help="which outside effects: those looked at in the design of the "
                         "rule, the set held out of all tuning, or one of the sets written "
-                        "after every rule, unseen to unseen_8 (tests/bench/diagnose/outside.py)")
+                        "after every rule, unseen to unseen_9 (tests/bench/diagnose/outside.py)")
     parser.add_argument("--first", type=int, default=0, help="index of the first case")
     parser.add_argument("--classes", nargs="+", choices=CLASSES,
                         help="run only the cases of these classes among the --cases drawn "

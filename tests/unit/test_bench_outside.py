@@ -1,6 +1,6 @@
 """The benchmark's effects outside the vocabulary plant the physics their docstrings state
 (tests/bench/diagnose/outside.py): the sets written after every rule, UNSEEN,
-UNSEEN_2 to UNSEEN_8. No diagnosis runs here: the last seven are only ever run to be
+UNSEEN_2 to UNSEEN_9. No diagnosis runs here: the last eight are only ever run to be
 reported."""
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from tests.bench.diagnose.outside import (
     UNSEEN_6,
     UNSEEN_7,
     UNSEEN_8,
+    UNSEEN_9,
     ball_detent,
     breathing_rub,
     brush_timing,
@@ -33,17 +34,20 @@ from tests.bench.diagnose.outside import (
     fluid_coupling,
     frame_vibration,
     freewheel_flywheel,
+    friction_ageing,
     friction_run_in,
     mesh_ripple,
     offset_drift,
     one_way_drag,
     power_law_drag,
     regen_clipping,
+    relief_pump,
     rubbing_arc,
     sense_asymmetry,
     shaft_rub,
     slip_clutch,
     turbulent_load,
+    voltage_ceiling,
     warming_drag,
     winding_heating,
 )
@@ -338,8 +342,54 @@ def test_the_brush_timing_changes_the_torque_constant_with_the_direction_of_rota
     assert other(0.0, 5.0, 2.0, 0.0) == pytest.approx(0.04)
 
 
+def test_the_voltage_ceiling_limits_the_driving_current_less_the_faster_the_shaft() -> None:
+    torque = voltage_ceiling({"Kt": 0.1, "I0": 4.0, "omega_0": 100.0}, 10.0)
+    # driving at 50 rad/s the bridge gives at most 2 A: beyond it the excess is lost
+    assert torque(0.0, 50.0, 1.5, 0.0) == 0.0
+    assert torque(0.0, 50.0, 3.0, 0.0) == pytest.approx(0.1)
+    assert torque(0.0, -50.0, -3.0, 0.0) == pytest.approx(-0.1)
+    # at 75 rad/s at most 1 A, at the no-load speed and beyond nothing
+    assert torque(0.0, 75.0, 3.0, 0.0) == pytest.approx(0.2)
+    assert torque(0.0, 120.0, 3.0, 0.0) == pytest.approx(0.3)
+    # braking, whatever the current: nothing lost
+    assert torque(0.0, 75.0, -3.0, 0.0) == 0.0 and torque(0.0, -75.0, 3.0, 0.0) == 0.0
+
+
+def test_the_relief_pump_is_viscous_below_its_knee_and_level_above() -> None:
+    torque = relief_pump({"T_max": 0.02, "omega_k": 40.0}, 10.0)
+    assert [torque(0.0, w, 0.0, 0.0) for w in (10.0, 20.0, 40.0, 80.0, 400.0)] \
+        == pytest.approx([0.005, 0.01, 0.02, 0.02, 0.02])
+    assert torque(0.0, -20.0, 0.0, 0.0) == pytest.approx(-0.01)
+    assert torque(0.0, 0.0, 0.0, 0.0) == 0.0
+
+
+def test_the_aged_friction_grows_with_the_rest_and_wears_off_with_the_travel() -> None:
+    p = {"dT": 0.02, "tau_d": 0.05, "s0": 0.1, "eps": 1e-3}
+
+    def breakaway(rest_s: float, travel_rad: float) -> float:
+        torque = friction_ageing(p, 10.0)
+        steps = int(round(rest_s / H))
+        for k in range(steps + 1):  # at rest
+            torque(0.0, 0.0, 0.0, k * H)
+        # moves on at 10 rad/s: the first sub-step after travelling travel_rad
+        t = steps * H + H
+        return torque(travel_rad, 10.0, 0.0, t)
+
+    # the excess grows with the rest: 1 - exp(-d/tau_d)
+    assert breakaway(0.05, 0.0) == pytest.approx(0.02 * (1 - math.exp(-1)), rel=1e-3)
+    assert breakaway(0.2, 0.0) == pytest.approx(0.02 * (1 - math.exp(-4)), rel=1e-3)
+    assert breakaway(0.005, 0.0) < 0.1 * breakaway(0.2, 0.0)
+    # and wears off with the travel since it moved: exp(-s/s0)
+    assert breakaway(0.2, 0.1) == pytest.approx(breakaway(0.2, 0.0) * math.exp(-1), rel=1e-6)
+    # a new run starts from a fresh rest
+    torque = friction_ageing(p, 10.0)
+    for k in range(2000):
+        torque(0.0, 0.0, 0.0, k * H)
+    assert torque(0.0, 10.0, 0.0, 0.0) == 0.0
+
+
 @pytest.mark.parametrize("name", ["unseen", "unseen_2", "unseen_3", "unseen_4", "unseen_5",
-                                  "unseen_6", "unseen_7", "unseen_8"])
+                                  "unseen_6", "unseen_7", "unseen_8", "unseen_9"])
 def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchanged(
         name: str) -> None:
     seed, found = 291, set()
@@ -357,3 +407,4 @@ def test_an_unseen_case_plants_one_unseen_effect_beside_the_others_cases_unchang
     assert OUTSIDE_SETS["unseen_3"] is UNSEEN_3 and OUTSIDE_SETS["unseen_4"] is UNSEEN_4
     assert OUTSIDE_SETS["unseen_5"] is UNSEEN_5 and OUTSIDE_SETS["unseen_6"] is UNSEEN_6
     assert OUTSIDE_SETS["unseen_7"] is UNSEEN_7 and OUTSIDE_SETS["unseen_8"] is UNSEEN_8
+    assert OUTSIDE_SETS["unseen_9"] is UNSEEN_9

@@ -49,6 +49,7 @@ from tests.bench.diagnose.outside import (
     UNSEEN_6,
     UNSEEN_7,
     UNSEEN_8,
+    UNSEEN_9,
     draw_outside,
     outside_torque,
 )
@@ -110,7 +111,7 @@ class Case:
 OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN,
                 "unseen_2": UNSEEN_2, "unseen_3": UNSEEN_3, "unseen_4": UNSEEN_4,
                 "unseen_5": UNSEEN_5, "unseen_6": UNSEEN_6,
-                "unseen_7": UNSEEN_7, "unseen_8": UNSEEN_8}
+                "unseen_7": UNSEEN_7, "unseen_8": UNSEEN_8, "unseen_9": UNSEEN_9}
 
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,

@@ -2,7 +2,7 @@
 real stands that no vocabulary effect models, planted as a torque the simulator adds
 (:attr:`stand.physics.plant.MotorPlant.extra_torque`).
 
-Ten sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
+Eleven sets: :data:`OUTSIDE` (looked at while the rule that calls a gap ``unexplained``
 was designed, docs/results/diagnose.md); :data:`HELD_OUT`, written before that rule
 and kept out of all tuning, but whose cases later stops read one by one (its eddy brakes
 and position frictions are named in their notes); :data:`UNSEEN`, written at stop
@@ -14,8 +14,10 @@ written at stop 59 after UNSEEN_3's result and before any change made after it;
 :data:`UNSEEN_5`, written at stop 60 before any change made at that stop;
 :data:`UNSEEN_6`, written at stop 60 after UNSEEN_5's result and before any change made
 after it; :data:`UNSEEN_7`, written at stop 60 after UNSEEN_6's result and before
-any change made after it; and :data:`UNSEEN_8`, written at stop 61 before any change
-made at that stop. Each torque opposes the motor (it is subtracted from the drive
+any change made after it; :data:`UNSEEN_8`, written at stop 61 before any change
+made at that stop; and :data:`UNSEEN_9`, written at stop 62 after that stop's change
+(a strong speed shape near the noise gap counts after a named effect) and before any
+result with it. Each torque opposes the motor (it is subtracted from the drive
 torque), N·m.
 """
 
@@ -471,6 +473,64 @@ def brush_timing(p: dict[str, float], duration_s: float) -> Torque:
     return lambda theta, omega, i, t: -kt * e * s * math.tanh(omega / eps_w) * i
 
 
+def voltage_ceiling(p: dict[str, float], duration_s: float) -> Torque:
+    """A drive at the end of its supply voltage: the bridge at full duty cannot push
+    more current than ``I0·(1 − |ω|/ω₀)`` against the back EMF (the stall current at
+    rest, nothing at the no-load speed ``ω₀``) while it drives the shaft (``i·ω > 0``),
+    and the record shows the demand ``i``; the loss ``Kt·(i − clip(i, ±i_max))`` while
+    driving, nothing while braking. A current limit that falls with the speed."""
+    kt, i0, w0 = p["Kt"], p["I0"], p["omega_0"]
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        if i * omega <= 0.0:
+            return 0.0
+        lim = i0 * max(1.0 - abs(omega) / w0, 0.0)
+        return kt * (i - min(max(i, -lim), lim))
+
+    return torque
+
+
+def relief_pump(p: dict[str, float], duration_s: float) -> Torque:
+    """A positive-displacement pump on the shaft with a relief valve: its torque grows
+    with the speed as the pressure does, ``c·|ω|``, until the valve opens at the knee
+    speed ``ω_k`` and holds the pressure, ``T_max``; ``min(c·|ω|, T_max)·sign(ω)``
+    with ``c = T_max/ω_k``. A drag that is viscous below the knee and dry above it."""
+    T, wk = p["T_max"], p["omega_k"]
+    return lambda theta, omega, i, t: math.copysign(min(T * abs(omega) / wk, T), omega)
+
+
+def friction_ageing(p: dict[str, float], duration_s: float) -> Torque:
+    """A contact whose friction ages at rest (the static friction of rate-and-state
+    models grows with the time stuck): after the shaft has rested (``|ω| < eps``) for
+    ``d`` s, it breaks away against an excess ``ΔT·(1 − exp(−d/τ_d))`` that wears off
+    over the travel ``s`` since it moved again, ``·exp(−s/s₀)``; the sign smoothed over
+    ``eps`` rad/s. Not a friction of the speed: a brief reversal meets little of it,
+    a long rest much."""
+    dT, tau_d, s0, eps = p["dT"], p["tau_d"], p["s0"], p["eps"]
+    clock = _RunClock()
+    state = {"theta": 0.0, "dwell": 0.0, "travel": 0.0, "resting": 1.0}
+
+    def torque(theta: float, omega: float, i: float, t: float) -> float:
+        h = clock.step(t)
+        if h is None:  # a new run: the shaft has just stopped
+            state.update(theta=theta, dwell=0.0, travel=0.0, resting=1.0)
+            h = 0.0
+        if abs(omega) < eps:
+            if not state["resting"]:  # it stops again: a new rest
+                state.update(dwell=0.0, resting=1.0)
+            state["dwell"] += h
+            state["travel"] = 0.0
+        else:
+            state["resting"] = 0.0
+            state["travel"] += abs(theta - state["theta"])
+        state["theta"] = theta
+        excess = (dT * (1.0 - math.exp(-state["dwell"] / tau_d))
+                  * math.exp(-state["travel"] / s0))
+        return excess * math.tanh(omega / eps)
+
+    return torque
+
+
 #: Name to the torque it plants: the set looked at in the design of the rule.
 OUTSIDE: OutsideSet = {
     "fan_drag": fan_drag, "kt_saturation": kt_saturation,
@@ -524,9 +584,14 @@ UNSEEN_8: OutsideSet = {
     "frame_vibration": frame_vibration, "regen_clipping": regen_clipping,
     "brush_timing": brush_timing,
 }
+#: Written at stop 62 after that stop's change, before any result with it.
+UNSEEN_9: OutsideSet = {
+    "voltage_ceiling": voltage_ceiling, "relief_pump": relief_pump,
+    "friction_ageing": friction_ageing,
+}
 #: Every outside effect by name.
 ALL_OUTSIDE = {**OUTSIDE, **HELD_OUT, **UNSEEN, **UNSEEN_2, **UNSEEN_3, **UNSEEN_4,
-               **UNSEEN_5, **UNSEEN_6, **UNSEEN_7, **UNSEEN_8}
+               **UNSEEN_5, **UNSEEN_6, **UNSEEN_7, **UNSEEN_8, **UNSEEN_9}
 
 
 def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: float,
@@ -630,6 +695,17 @@ def draw_outside(name: str, rng: np.random.Generator, Kt: float, torque_ref: flo
     if name == "brush_timing":
         return {"Kt": Kt, "eps": strength, "s": float(rng.choice([-1.0, 1.0])),
                 "eps_w": 0.01 * omega_ref}
+    if name == "voltage_ceiling":
+        # the current the bridge gives at the typical speed, drawn as a braking limit's
+        stall = current_ref * float(rng.uniform(1.5, 3.0))
+        at_ref = current_ref * float(rng.uniform(0.7, 1.5)) / (1 + 5 * strength)
+        return {"Kt": Kt, "I0": stall, "omega_0": omega_ref / (1.0 - at_ref / stall)}
+    if name == "relief_pump":
+        return {"T_max": strength * torque_ref,
+                "omega_k": _log_uniform(rng, 0.3, 1.5) * omega_ref}
+    if name == "friction_ageing":
+        return {"dT": 2 * strength * torque_ref, "tau_d": _log_uniform(rng, 0.005, 0.1),
+                "s0": omega_ref * _log_uniform(rng, 0.005, 0.05), "eps": 0.01 * omega_ref}
     raise KeyError(name)
 
 
