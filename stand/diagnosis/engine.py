@@ -308,13 +308,13 @@ def _within_noise_note(held: bool, verdict_gap: float, noise_gap: float, p_shape
     nothing named)."""
     if not held:
         return []
-    named = speed is not None and drift is not None
-    if speed is not None and drift is not None:
-        shapes = (f"a torque growing with the speed beyond a friction level and a slope "
-                  f"p = {speed.p_value:.2g}, a drag or friction level drifting over the "
-                  f"run p = {drift.p_value:.2g}")
+    if speed is None or drift is None:  # nothing named
+        named, shapes = False, (f"speed, current-level, time, drift and current-speed "
+                                f"shapes p = {p_shapes:.2g}")
     else:
-        shapes = f"speed, current-level, time, drift and current-speed shapes p = {p_shapes:.2g}"
+        named, shapes = True, (f"a torque growing with the speed beyond a friction level "
+                               f"and a slope p = {speed.p_value:.2g}, a drag or friction "
+                               f"level drifting over the run p = {drift.p_value:.2g}")
     return [f"the equation error {'left ' if named else ''}holds a shape ({shapes}, along "
             f"the travel p = {p_along:.2g}), but the gap {'left ' if named else ''}"
             f"({verdict_gap:.2f} %) is within what noise explains ({noise_gap:.2f} %): not "

@@ -158,10 +158,9 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
       (``p_along``), or over the run (the drift shapes, ``p_drift``: a drag or a dry
       friction level that changes with time), or, below the approximation share,
       holds a torque that grows with the speed other than a friction level and a
-      slope (``p_speed``); each
-      counts from a shrink of HOLDOUT's equation error of ``MIN_SHRINK``, the
-      diagnosis' least shrink that counts, and each test at ``FAMILY_ALPHA`` shared
-      among the three. None of the vocabulary's models is a function of the position
+      slope (``p_speed``); each counts from a shrink of HOLDOUT's equation error of
+      ``MIN_SHRINK``, the diagnosis' least shrink that counts, and each test at
+      ``FAMILY_ALPHA`` shared among the three. None of the vocabulary's models is a function of the position
       beyond a revolution, of the time, or of the speed beyond a level and a slope, so
       none of the three shapes is their approximation. Below ``UNEXPLAINED_FACTOR``
       times the noise gap the speed shape counts only from
