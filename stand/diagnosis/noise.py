@@ -160,14 +160,14 @@ def unexplained(nominal_gap: float, verdict_gap: float, noise_gap: float,
       holds a torque that grows with the speed other than a friction level and a
       slope (``p_speed``); each counts from a shrink of HOLDOUT's equation error of
       ``MIN_SHRINK``, the diagnosis' least shrink that counts, and each test at
-      ``FAMILY_ALPHA`` shared among the three. None of the vocabulary's models is a function of the position
-      beyond a revolution, of the time, or of the speed beyond a level and a slope, so
-      none of the three shapes is their approximation. Below ``UNEXPLAINED_FACTOR``
-      times the noise gap the speed shape counts only from
-      :data:`NEAR_NOISE_SPEED_SHRINK` (what it finds there is mostly of the size of
-      the vocabulary models' own small errors), and the current shapes count nowhere
-      after a named effect: a shaft that sticks leaves a torque error at small
-      currents that they take in part.
+      ``FAMILY_ALPHA`` shared among the three. None of the vocabulary's models is a
+      function of the position beyond a revolution, of the time, or of the speed beyond
+      a level and a slope, so none of the three shapes is their approximation. Below
+      ``UNEXPLAINED_FACTOR`` times the noise gap the speed shape counts only from
+      :data:`NEAR_NOISE_SPEED_SHRINK` (what it finds there is mostly of the size of the
+      vocabulary models' own small errors), and the current shapes count nowhere after
+      a named effect: a shaft that sticks leaves a torque error at small currents that
+      they take in part.
     """
     if hold_within_noise and within_noise(verdict_gap, noise_gap):
         return False
