@@ -29,6 +29,11 @@ are then eq. 17's first-order spread of the two pooled means, with Student's t
 the seed, Kt is the mean over the pairs and ``Kt_ci95`` that mean ± t times its
 standard error.
 
+The runs are of one motor: a position harmonic (cogging, torque ripple) is the
+motor's at one order. One that the runs choose at orders no majority of them shares
+(:func:`stray_harmonics`) is a run's artefact, not the motor's: the runs that chose
+it are identified again without it, and their Kt/J's interval holds what it moved.
+
 ``Kt_std`` is the standard deviation of one pair: the larger of the scatter over the
 pairs and the spread eq. 17 gets from each run's own interval
 (:func:`kt_std_from_runs`): two repeats that agree by chance do not make the answer
@@ -37,8 +42,10 @@ more certain than its runs.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -139,6 +146,58 @@ def no_load_current(run: Run, method: str = "default",
     design = np.column_stack([np.ones_like(alpha), alpha])
     (i0, _), *_ = np.linalg.lstsq(design, current, rcond=None)
     return float(i0)
+
+
+def stray_harmonics(fits: Sequence[IdentifyResult]) -> list[str]:
+    """Position harmonics (effects with an order ``N``: cogging, torque ripple) that runs
+    of one motor chose, but at no one order that more than half of those runs share.
+
+    A motor's cogging or ripple has one order, whatever the run. A harmonic that one run
+    takes at order 25, the next at 31 and the next at 18 fits what each run's model
+    lacks (a harmonic beyond the sampling's Nyquist rate met by a current that moves
+    within the period, seed 29's stand 6 in docs/results/ident.md), and it moves Kt/J by
+    a bias the runs share and their intervals do not hold. A harmonic that some runs do
+    not choose at all is not stray for that: a weak one shows in the runs that excite it.
+    """
+    orders: dict[str, Counter[int]] = {}
+    for fit in fits:
+        for name in fit.effects:
+            order = fit.effect_params.get(name, {}).get("N")
+            if order is not None:
+                orders.setdefault(name, Counter())[int(round(order))] += 1
+    return sorted(name for name, counts in orders.items()
+                  if 2 * counts.most_common(1)[0][1] <= counts.total())
+
+
+def _without(run: Run, fit: IdentifyResult, stray: list[str],
+             identify: Callable[..., IdentifyResult], estimator: str | None) -> IdentifyResult:
+    """``fit`` of ``run`` again by ``identify`` (:func:`identify_run` with the run's other
+    arguments), its effects but ``stray`` named; ``fit`` if it holds none of them.
+
+    The stray harmonic took part of something the model lacks; left out, that part goes
+    elsewhere, and which of the two fits is nearer the truth the run cannot say. Kt/J's
+    variance takes their disagreement (less what their own noise makes of it, as for
+    nested fits: Hausman), and its interval widens in proportion."""
+    if not set(fit.effects) & set(stray):
+        return fit
+    kept = [name for name in fit.effects if name not in stray]
+    out = identify(run, effects=",".join(kept) or "none", estimator=estimator or "auto")
+    se = out.Kt_over_J_se
+    disagreement = (out.Kt_over_J - fit.Kt_over_J) ** 2 - abs(se**2 - fit.Kt_over_J_se**2)
+    wider = float(np.sqrt(se**2 + max(0.0, disagreement)))
+    low, high = out.Kt_over_J_ci95
+    half = 0.5 * (high - low) * (wider / se if se > 0 else 1.0)
+    return replace(out, Kt_over_J_se=wider,
+                   Kt_over_J_ci95=[out.Kt_over_J - half, out.Kt_over_J + half])
+
+
+def _stray_warning(name: str, fits: Sequence[IdentifyResult]) -> str:
+    """The sentence that says which runs chose the stray harmonic ``name``, at which orders."""
+    orders = sorted(int(round(f.effect_params[name]["N"])) for f in fits if name in f.effects)
+    return (f"{name} left out of the {len(orders)} of {len(fits)} runs that chose it: they took "
+            f"it at orders {', '.join(map(str, orders))}, no one of them in more than half of "
+            "those runs, which a motor's own harmonic does not do; their Kt/J intervals "
+            "hold what it moved")
 
 
 def kt_spread(b2_no_load: float, se_no_load: float, b2_loaded: float, se_loaded: float,
@@ -268,6 +327,15 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
                                                supply) for r in no_load_runs]
     loaded = [identify_run(r, method, offset, half_width, effects, estimator, supply)
               for r in loaded_runs]
+    stray = stray_harmonics([*free, *loaded]) if parse_effects(effects) is None else []
+    stray_warnings = [_stray_warning(name, [*free, *loaded]) for name in stray]
+    if stray:
+        again = partial(identify_run, method=method, no_load_current_A=offset,
+                        half_width=half_width, supply=supply)
+        free = [_without(r, f, stray, again, estimator)
+                for r, f in zip(no_load_runs, free, strict=True)]
+        loaded = [_without(r, f, stray, again, estimator)
+                  for r, f in zip(loaded_runs, loaded, strict=True)]
     b_free = np.array([f.Kt_over_J for f in free])
     b_load = np.array([f.Kt_over_J for f in loaded])
     if np.mean(b_free) <= np.mean(b_load):
@@ -299,6 +367,7 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
     for label, runs, fits in (("no-load", no_load_runs, free), ("loaded", loaded_runs, loaded)):
         for run, fit in zip(runs, fits, strict=True):
             warnings += [f"{label} run {run.source}: {w}" for w in fit.warnings]
+    warnings += stray_warnings
     found = sorted({name for fit in (*free, *loaded) for name in fit.effects})
     return TorqueConstantResult(
         Kt=kt_mean, Kt_std=kt_std, J=J,
