@@ -372,12 +372,17 @@ def model_variance(fitter: Fitter, chosen: Selection) -> float:
 
 
 def model_disagreement(one: Estimate, other: Estimate, name: str) -> float:
-    """Squared difference of coefficient ``name`` between two models' estimates, less the
-    part their own noise makes (the difference of their variances, as for nested fits:
-    Hausman), at least 0."""
+    """:func:`disagreement` of coefficient ``name`` between two models' estimates."""
     k, j = one.names.index(name), other.names.index(name)
-    difference = float(one.beta[k] - other.beta[j])
-    return max(0.0, difference**2 - abs(float(one.cov[k, k] - other.cov[j, j])))
+    return disagreement(float(one.beta[k]), float(one.cov[k, k]),
+                        float(other.beta[j]), float(other.cov[j, j]))
+
+
+def disagreement(one: float, one_variance: float, other: float, other_variance: float) -> float:
+    """Squared difference of two fits' estimates of one value, less the part their own
+    noise makes (the difference of their variances, as for nested fits: Hausman), at
+    least 0."""
+    return max(0.0, (one - other) ** 2 - abs(one_variance - other_variance))
 
 
 def select(fitter: Fitter, wanted: list[str] | None, spring: bool = False,

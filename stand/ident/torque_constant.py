@@ -54,7 +54,7 @@ from stand.errors import InputError
 from stand.ident.derivatives import state_derivatives
 from stand.ident.estimate import MIN_BLOCKS, t_interval, t_quantile
 from stand.ident.identify import IdentifyResult, identify_run
-from stand.ident.select import parse_effects
+from stand.ident.select import disagreement, parse_effects
 from stand.ident.supply import DriveSupply
 from stand.jsonable import JsonResult
 from stand.runfile import Run
@@ -183,8 +183,8 @@ def _without(run: Run, fit: IdentifyResult, stray: list[str],
     kept = [name for name in fit.effects if name not in stray]
     out = identify(run, effects=",".join(kept) or "none", estimator=estimator or "auto")
     se = out.Kt_over_J_se
-    disagreement = (out.Kt_over_J - fit.Kt_over_J) ** 2 - abs(se**2 - fit.Kt_over_J_se**2)
-    wider = float(np.sqrt(se**2 + max(0.0, disagreement)))
+    wider = float(np.sqrt(se**2 + disagreement(out.Kt_over_J, se**2, fit.Kt_over_J,
+                                               fit.Kt_over_J_se**2)))
     low, high = out.Kt_over_J_ci95
     half = 0.5 * (high - low) * (wider / se if se > 0 else 1.0)
     return replace(out, Kt_over_J_se=wider,

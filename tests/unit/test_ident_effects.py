@@ -287,8 +287,7 @@ def test_a_harmonic_the_runs_take_at_scattered_orders_is_stray() -> None:
                        effect_params={name: {"N": float(n)} for name, n in orders.items()})
 
     stand_6 = [chose(torque_ripple=11, cogging=n) for n in (20, 11, 36, 25, 31, 11, 18)]
-    stand_6 += [chose(torque_ripple=11), chose(torque_ripple=11, current_offset=0)]
-    stand_6 += [chose(torque_ripple=11)]
+    stand_6 += [chose(torque_ripple=11)] * 3
     assert stray_harmonics(stand_6) == ["cogging"]
     assert _stray_warning("cogging", stand_6).startswith(
         "cogging left out of the 7 of 10 runs that chose it: they took it at orders 11, 11, "
