@@ -44,11 +44,12 @@ def test_a_backlash_crossed_within_a_sample_is_named() -> None:
 
 
 def test_a_dead_zone_wider_than_any_searched_is_no_backlash() -> None:
-    # Held-out seed 306 case 161: a load of 0.28 times the rotor's inertia on a shaft
-    # resonating at 10 Hz, no dead zone. A backlash fitted it at the search's widest gap,
-    # 0.3 rad, and was the verdict (gap 4.03 → 3.48 % against a noise gap of 0.13 %):
-    # the optimum lay beyond that end, where a load that parts from the motor over the
-    # whole motion puts it. Refined past the end, the search now says it found none.
+    # Held-out seed 306 case 161: a load (1.08e-4 kg·m²) on a shaft resonating at 10 Hz,
+    # no dead zone. A backlash fitted it at the search's widest gap, 0.3 rad, with a load
+    # of 0.28 times the rotor's inertia, and was the verdict (gap 4.03 → 3.48 % against a
+    # noise gap of 0.13 %): the optimum lay beyond that end, where a load that parts from
+    # the motor over the whole motion puts it. Refined past the end, the search now says
+    # it found none.
     case, train, holdout = case_runs(161, 306, held_out=True, current_mean=True)
     assert list(case.outside) == ["elastic_load"]
     result = diagnose(train, holdout)
