@@ -159,14 +159,15 @@ def stray_harmonics(fits: Sequence[IdentifyResult]) -> list[str]:
     a bias the runs share and their intervals do not hold. A harmonic that some runs do
     not choose at all is not stray for that: a weak one shows in the runs that excite it.
     """
-    orders: dict[str, Counter[int]] = {}
-    for fit in fits:
-        for name in fit.effects:
-            order = fit.effect_params.get(name, {}).get("N")
-            if order is not None:
-                orders.setdefault(name, Counter())[int(round(order))] += 1
-    return sorted(name for name, counts in orders.items()
-                  if 2 * counts.most_common(1)[0][1] <= counts.total())
+    names = {name for fit in fits for name in fit.effects
+             if "N" in fit.effect_params.get(name, {})}
+    counts = {name: Counter(_orders(name, fits)) for name in names}
+    return sorted(name for name, c in counts.items() if 2 * c.most_common(1)[0][1] <= c.total())
+
+
+def _orders(name: str, fits: Sequence[IdentifyResult]) -> list[int]:
+    """The order ``N`` at which each of ``fits`` that holds harmonic ``name`` took it."""
+    return [int(round(f.effect_params[name]["N"])) for f in fits if name in f.effects]
 
 
 def _without(run: Run, fit: IdentifyResult, stray: list[str],
@@ -193,7 +194,7 @@ def _without(run: Run, fit: IdentifyResult, stray: list[str],
 
 def _stray_warning(name: str, fits: Sequence[IdentifyResult]) -> str:
     """The sentence that says which runs chose the stray harmonic ``name``, at which orders."""
-    orders = sorted(int(round(f.effect_params[name]["N"])) for f in fits if name in f.effects)
+    orders = sorted(_orders(name, fits))
     return (f"{name} left out of the {len(orders)} of {len(fits)} runs that chose it: they took "
             f"it at orders {', '.join(map(str, orders))}, no one of them in more than half of "
             "those runs, which a motor's own harmonic does not do; their Kt/J intervals "
@@ -327,8 +328,9 @@ def torque_constant(no_load_runs: Sequence[Run], loaded_runs: Sequence[Run],
                                                supply) for r in no_load_runs]
     loaded = [identify_run(r, method, offset, half_width, effects, estimator, supply)
               for r in loaded_runs]
-    stray = stray_harmonics([*free, *loaded]) if parse_effects(effects) is None else []
-    stray_warnings = [_stray_warning(name, [*free, *loaded]) for name in stray]
+    chosen = [*free, *loaded]
+    stray = stray_harmonics(chosen) if parse_effects(effects) is None else []
+    stray_warnings = [_stray_warning(name, chosen) for name in stray]
     if stray:
         again = partial(identify_run, method=method, no_load_current_A=offset,
                         half_width=half_width, supply=supply)
