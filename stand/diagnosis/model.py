@@ -24,6 +24,7 @@ import numpy as np
 
 from stand.diagnosis import kicks, supply_limit
 from stand.diagnosis.backlash_load import load_state
+from stand.diagnosis.coupling_load import coupling_state
 from stand.diagnosis.dry_friction import period_mean
 from stand.diagnosis.signals import Signals, near_rest
 from stand.errors import InputError, NotExcitedError
@@ -43,6 +44,9 @@ FILTER_REACH_SAMPLES = 12
 #: called Coulomb friction with two, Stribeck friction with three; a loop resting
 #: hundreds of periods is named Coulomb friction with either).
 MIN_REST_PERIODS = 3
+#: Input columns of a second inertia's acceleration, coefficient ``−J_load/J``: behind a
+#: backlash, and behind a compliant coupling (fitted alike, :func:`_from_fitting_form`).
+LOAD_COLUMNS: tuple[str, ...] = ("load_accel", "coupling_accel")
 #: Largest load inertia behind a backlash, relative to the motor's, that a fit may give.
 MAX_LOAD_RATIO = 1000.0
 #: The share ``J_l/(J + J_l)`` of such a load.
@@ -85,6 +89,15 @@ class ModelSpec:
         Coefficient of restitution of the backlash contact: 0 carries the load along
         after an impact, ``e > 0`` lets it rebound (relative speed ``−e`` times that
         before the impact), as gear teeth do.
+    coupling_hz : float or None
+        Mode of a load inertia on a compliant coupling (no dead zone), Hz: not a
+        vocabulary effect, the competitor a backlash verdict is checked against
+        (:mod:`.coupling`). The load follows the measured motion through the mode
+        (:func:`~stand.diagnosis.coupling_load.coupling_state`); the regressor
+        ``coupling_accel`` with coefficient ``−J_load/J`` is the torque it takes. Never
+        beside ``backlash_gap``.
+    coupling_zeta : float
+        Damping ratio of that mode.
     input_weight : float
         How the current between two samples is reconstructed: over the period from
         sample ``n`` to ``n + 1`` it is ``(1 − w)·i[n] + w·i[n + 1]``. ``0.5`` is the
@@ -105,6 +118,8 @@ class ModelSpec:
     ripple_N: int | None = None
     backlash_gap: float | None = None
     backlash_restitution: float = 0.0
+    coupling_hz: float | None = None
+    coupling_zeta: float = 0.0
     input_weight: float = 0.5
     spring: bool = False
     #: Whether the speed loop's kicks of the current between samples are in the input
@@ -137,6 +152,8 @@ class ModelSpec:
             out += ["rip_sin", "rip_cos"]
         if self.backlash_gap is not None:
             out.append("load_accel")
+        if self.coupling_hz is not None:
+            out.append("coupling_accel")
         if self.kicks:
             out += list(KICK_COLUMNS)
         out += [f"supply_{name}" for name in self.supply]
@@ -156,6 +173,9 @@ class ModelSpec:
                           else self.backlash_gap),
             backlash_restitution=(other.backlash_restitution if other.backlash_gap is not None
                                   else self.backlash_restitution),
+            coupling_hz=other.coupling_hz if other.coupling_hz is not None else self.coupling_hz,
+            coupling_zeta=(other.coupling_zeta if other.coupling_hz is not None
+                           else self.coupling_zeta),
             input_weight=self.input_weight, spring=self.spring,
             kicks=self.kicks, supply=self.supply, lag=self.lag,
         )
@@ -397,6 +417,7 @@ def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
         "cog_cos": ("cog_cos", spec.cogging_N), "rip_sin": ("rip_sin", spec.ripple_N, *current),
         "rip_cos": ("rip_cos", spec.ripple_N, *current),
         "load_accel": ("load", spec.backlash_gap, spec.backlash_restitution),
+        "coupling_accel": ("coupling", spec.coupling_hz, spec.coupling_zeta),
     }[name]
 
 
@@ -429,6 +450,9 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         return at_samples(current * periodic)
     if name == "load_accel":
         omega_l = load_state(sig, spec.backlash_gap or 0.0, spec.backlash_restitution)[1]
+        return np.asarray(np.gradient(omega_l, sig.dt_s))
+    if name == "coupling_accel":
+        omega_l = coupling_state(sig, spec.coupling_hz or 0.0, spec.coupling_zeta)[1]
         return np.asarray(np.gradient(omega_l, sig.dt_s))
     raise InputError(f"unknown input column {name!r}")
 
@@ -496,7 +520,7 @@ def _fit_columns(spec: ModelSpec, sig: Signals) -> list[tuple[tuple[object, ...]
     out = []
     for name in spec.names():
         key, column = _column_key(spec, name), _filtered_column(spec, sig, name)
-        if name == "load_accel":
+        if name in LOAD_COLUMNS:
             out.append((("twist", *key), sig.accel_f - column))
         else:
             out.append((key, column))
@@ -549,14 +573,21 @@ def _from_fitting_form(spec: ModelSpec, A: np.ndarray, B: np.ndarray
     coefficient, which the searches reject as unphysical, and ``c`` is held at the share
     of a load ``MAX_LOAD_RATIO`` times the motor's (:func:`_never_carried`).
     """
-    if spec.backlash_gap is None:
+    load = _load_column(spec)
+    if load is None:
         return A, B
-    load = spec.names().index("load_accel")
     c = np.minimum(B[..., load], MAX_LOAD_SHARE)  # so 1 − c > 0
     gain = 1.0 / (1.0 - c)
     B = B * gain[..., None]
     B[..., load] = -c * gain
     return A * gain[..., None], B
+
+
+def _load_column(spec: ModelSpec) -> int | None:
+    """Index among ``spec``'s input columns of its load's (a backlash's or a compliant
+    coupling's, :data:`LOAD_COLUMNS`), None without a load."""
+    names = spec.names()
+    return next((names.index(name) for name in LOAD_COLUMNS if name in names), None)
 
 
 def _never_carried(spec: ModelSpec, B: np.ndarray) -> np.ndarray:
@@ -565,9 +596,10 @@ def _never_carried(spec: ModelSpec, B: np.ndarray) -> np.ndarray:
     carries (a gap wider than its travel). The twist acceleration is then the
     acceleration itself and the fit trivial (share 1), not a model; the searches skip
     it, and a fit of it elsewhere keeps the load at ``MAX_LOAD_RATIO``."""
-    if spec.backlash_gap is None:
+    load = _load_column(spec)
+    if load is None:
         return np.zeros(B.shape[0], dtype=bool)
-    return np.asarray(B[:, spec.names().index("load_accel")] > MAX_LOAD_SHARE)
+    return np.asarray(B[:, load] > MAX_LOAD_SHARE)
 
 
 def ripple_on_offset(spec: ModelSpec) -> bool:
@@ -727,7 +759,7 @@ def nominal() -> ModelSpec:
     return ModelSpec()
 
 
-__all__ = ["KICK_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
+__all__ = ["KICK_COLUMNS", "LOAD_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
            "fit", "fit_residual_batch", "interval_current", "kick_basis", "lag_share",
            "lag_slope", "nominal", "offset_ripple",
            "period_current", "period_mean_current", "period_shape", "supply_basis",

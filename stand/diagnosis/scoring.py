@@ -201,6 +201,11 @@ class Bench:
         stays within that run); else None."""
         if not effect.picked_by_simulation:
             return None
+        return self.self_gaps(sig)
+
+    def self_gaps(self, sig: Signals) -> Simulated:
+        """Specs' gaps when identified on ``sig`` (TRAIN or HOLDOUT) and simulated on
+        ``sig`` itself, each spec scored once."""
         return _Gaps(self.on_train if sig is self.train else self.reverse.on_train)
 
     @cached_property

@@ -9,7 +9,8 @@ sample periods, not the speed at the instant), so the simulation reports the sam
 central difference of its own position.
 
 The anchor is the state one sample before the segment: the filtered position, a backlash
-load from the kinematic load estimate, and the speed that carries the model through the
+load from the kinematic load estimate (a load on a compliant coupling from the measured
+motion through its mode), and the speed that carries the model through the
 measured position one sample after the segment starts (a shooting step, solved per
 segment with the model itself). The filtered speed is no anchor: on a run whose
 acceleration changes within a few samples (a speed loop, a fast command) the low-pass
@@ -26,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stand.diagnosis.backlash_load import load_state
+from stand.diagnosis.coupling_load import coupling_state
 from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
@@ -142,9 +144,20 @@ def _simulate_together(models: list[FittedModel], sig: Signals, seg: Segments,
                             model.spec.backlash_restitution) for model in models]
         anchor.theta_l = np.concatenate([tl[first] for tl, _ in loads])
         anchor.omega_l = np.concatenate([wl[first] for _, wl in loads])
-    _shoot(step, anchor, drive[:, :2], np.tile(sig.theta[seg.starts + 1] - sig.theta[first], count),
-           None if bend is None else bend[:, :2])
-    theta = _positions(step, anchor, drive, bend)
+    elif spec.coupling_hz is not None:
+        loads = [coupling_state(sig, model.spec.coupling_hz or 0.0, model.spec.coupling_zeta)
+                 for model in models]
+        anchor.theta_l = np.concatenate([tl[first] for tl, _ in loads])
+        anchor.omega_l = np.concatenate([wl[first] for _, wl in loads])
+    # a coupled load fitted stiffer than the sub-steps resolve (tens of times the rotor's
+    # inertia at a high mode) diverges: its error is then the scorer's bound
+    # (:class:`~stand.diagnosis.scoring.Bench`), and no search keeps it
+    quiet = {"over": "ignore", "invalid": "ignore"} if spec.coupling_hz is not None else {}
+    with np.errstate(**quiet):  # type: ignore[arg-type]
+        _shoot(step, anchor, drive[:, :2],
+               np.tile(sig.theta[seg.starts + 1] - sig.theta[first], count),
+               None if bend is None else bend[:, :2])
+        theta = _positions(step, anchor, drive, bend)
     return np.split((theta[:, 2:] - theta[:, :-2]) / (2.0 * dt), count)
 
 
@@ -183,7 +196,7 @@ def _positions(step: _Stepper, anchor: _State, drive: np.ndarray,
 
 
 #: What models stepped together share (:func:`_kind`).
-Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool]
+Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool, bool]
 
 
 def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
@@ -191,8 +204,11 @@ def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
     branches of :meth:`_Stepper._substep` they take (``top``: the run's largest
     filtered speed, rad/s)."""
     spec, c = model.spec, model.coef
+    # a coupling's mode, as the motor meets it: ωn·sqrt(1 + J_l/J)
+    mode = (2.0 * math.pi * spec.coupling_hz * math.sqrt(1.0 + _load_ratio(c))
+            if spec.coupling_hz is not None else 0.0)
     rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
-               (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top)
+               (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top, mode)
     # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
     gap = spec.backlash_gap
     contact = min(BACKLASH_SUBSTEPS, math.ceil(top * sig.dt_s / gap)) if gap else 1
@@ -204,7 +220,13 @@ def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
     dry = friction and fc >= 0 and fc + (fs if stribeck else 0.0) > 0
     pushing = friction and not stribeck and fc < 0
     return (n_sub, spec.offset, spec.cogging_N, spec.ripple_N, gap is not None, friction,
-            stribeck, dry, pushing)
+            stribeck, dry, pushing, spec.coupling_hz is not None)
+
+
+def _load_ratio(coef: dict[str, float]) -> float:
+    """``J_load/J`` of a model's load (behind a backlash or a compliant coupling), 0
+    without one or for an unphysical (positive) coefficient."""
+    return max(-coef.get("load_accel", 0.0), -coef.get("coupling_accel", 0.0), 0.0)
 
 
 class _Stepper:
@@ -216,7 +238,7 @@ class _Stepper:
                  kind: Kind) -> None:
         self.sig, self.spec, self.segments = sig, models[0].spec, segments
         (self.n_sub, _, _, _, backlash, self.friction, self.stribeck, self.dry,
-         self.pushing) = kind
+         self.pushing, self.coupled) = kind
         coef = [model.coef for model in models]
 
         def of(name: str) -> np.ndarray | float:
@@ -234,8 +256,12 @@ class _Stepper:
         self.c_omega = self.rows(self.c_omegas)
         self.gap = self.rows([model.spec.backlash_gap or 0.0 for model in models]) if backlash else None
         self.restitution = self.rows([model.spec.backlash_restitution for model in models])
-        ratios = [max(-c.get("load_accel", 0.0), 0.0) for c in coef]
+        ratios = [_load_ratio(c) for c in coef]
         self.ratio = self.rows(ratios)
+        modes = [2.0 * math.pi * (model.spec.coupling_hz or 0.0) for model in models]
+        self.mode_sq = self.rows([w * w for w in modes])
+        self.mode_damping = self.rows([2.0 * model.spec.coupling_zeta * w
+                                       for model, w in zip(models, modes, strict=True)])
         self.fc = self.rows([-c.get("sign", 0.0) for c in coef])
         self.fs = self.rows([-c.get("stribeck", 0.0) for c in coef])
         self.ws = self.rows([model.spec.stribeck_ws or 1.0 for model in models])
@@ -268,6 +294,10 @@ class _Stepper:
         a = self.c_theta * theta + self.c_omega * omega + self.current * i
         if spec.offset:
             a = a + self.one
+        if self.coupled:  # the load on the coupling, its torque held over the sub-step
+            a_load = (self.mode_sq * (theta - st.theta_l)
+                      + self.mode_damping * (omega - st.omega_l))
+            a = a - ratio * a_load
         step = omega * h  # position-periodic torques: their mean over the sub-step
         if spec.cogging_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.cogging_N, theta, step)
@@ -315,6 +345,9 @@ class _Stepper:
                 new = omega + h_eff * scale * a
             st.theta = theta + 0.5 * h * (omega + new)
         st.omega = new
+        if self.coupled:
+            st.omega_l = st.omega_l + h * a_load
+            st.theta_l = st.theta_l + h * st.omega_l
         if gap is not None:
             carried = side != 0
             free_l = st.theta_l + h * st.omega_l

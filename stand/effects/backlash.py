@@ -67,6 +67,8 @@ class Backlash(Effect):
     # its equation error on HOLDOUT is an errors-in-variables fit that "improves" with
     # any inertia mismatch between the runs, not only with a dead zone
     speed_test_only: ClassVar[bool] = True
+    # its load is a second inertia, which a compliant coupling may hold instead
+    load_behind: ClassVar[bool] = True
 
     gap: float
     J_load: float

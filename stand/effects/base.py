@@ -85,6 +85,9 @@ class Effect:
         size (:data:`stand.diagnosis.noise.APPROXIMATION_SHARE`).
     spec_fields : tuple of str
         The :class:`ModelSpec` fields that model it (reset by :meth:`without`).
+    load_behind : bool
+        Whether its model is a load inertia behind the motor: a verdict naming it meets a
+        load on a compliant coupling (:mod:`stand.diagnosis.coupling`).
     """
 
     name: ClassVar[str]
@@ -98,6 +101,7 @@ class Effect:
     separated_by: ClassVar[str] = "a broadband command (e.g. a PRBS) that crosses zero"
     approximation_share: ClassVar[float] = APPROXIMATION_SHARE
     spec_fields: ClassVar[tuple[str, ...]] = ()
+    load_behind: ClassVar[bool] = False
 
     # --- physics ---------------------------------------------------------------------
 

@@ -19,7 +19,7 @@ from stand.diagnosis.model import FittedModel, ModelSpec, fit, fit_residual_batc
 from stand.diagnosis.signals import prepare, quantization_step
 from stand.diagnosis.significance import paired_improvement
 from stand.diagnosis.simulate import BATCH_ROWS, segments, simulate, simulate_many
-from stand.effects import backlash
+from stand.effects import UNEXPLAINED, backlash
 from stand.physics.parts import MotorParams, SensorParams
 from stand.runfile import Run, check_columns, read_run, write_run
 from tests.conftest import REAL_DATA
@@ -277,8 +277,12 @@ def test_a_dead_zone_of_a_few_counts_is_no_backlash(monkeypatch: pytest.MonkeyPa
     floor = backlash.MIN_GAP_COUNTS
     monkeypatch.setattr(backlash, "MIN_GAP_COUNTS", 2)
     result = diagnose(train, holdout)
-    assert result.verdict.split("+")[0] == "backlash", result.message
-    gap = next(e for e in result.effects if e.effect == "backlash").params["gap"]
+    # named, or dropped for a compliant coupling that simulates this false alarm better
+    # still (stand.diagnosis.coupling): a false alarm either way
+    assert result.verdict.split("+")[0] in ("backlash", UNEXPLAINED), result.message
+    found = next(e for e in result.effects if e.effect == "backlash")
+    assert found.significant, result.message
+    gap = found.params["gap"]
     count = quantization_step(prepare(train).theta)
     assert 1.99 < gap / count < floor
 
