@@ -448,13 +448,19 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
         periodic = periodic_column(spec.ripple_N or 0, sig, name == "rip_sin")
         return at_samples(current * periodic)
-    if name == "load_accel":
-        omega_l = load_state(sig, spec.backlash_gap or 0.0, spec.backlash_restitution)[1]
-        return np.asarray(np.gradient(omega_l, sig.dt_s))
-    if name == "coupling_accel":
-        omega_l = coupling_state(sig, spec.coupling_hz or 0.0, spec.coupling_zeta)[1]
-        return np.asarray(np.gradient(omega_l, sig.dt_s))
+    if name in LOAD_COLUMNS:
+        return np.asarray(np.gradient(load_motion(spec, sig)[1], sig.dt_s))
     raise InputError(f"unknown input column {name!r}")
+
+
+def load_motion(spec: ModelSpec, sig: Signals) -> np.ndarray:
+    """Position (rad) and speed (rad/s) of ``spec``'s load estimated from the measured
+    motion of ``sig``: on a compliant coupling through its mode
+    (:func:`~stand.diagnosis.coupling_load.coupling_state`), else behind the backlash gap
+    (:func:`~stand.diagnosis.backlash_load.load_state`)."""
+    if spec.coupling_hz is not None:
+        return coupling_state(sig, spec.coupling_hz, spec.coupling_zeta)
+    return load_state(sig, spec.backlash_gap or 0.0, spec.backlash_restitution)
 
 
 def regressors(spec: ModelSpec, sig: Signals) -> dict[str, np.ndarray]:
@@ -761,7 +767,7 @@ def nominal() -> ModelSpec:
 
 __all__ = ["KICK_COLUMNS", "LOAD_COLUMNS", "SUPPLY_COLUMNS", "FittedModel", "ModelSpec", "equation_residual",
            "fit", "fit_residual_batch", "interval_current", "kick_basis", "lag_share",
-           "lag_slope", "nominal", "offset_ripple",
+           "lag_slope", "load_motion", "nominal", "offset_ripple",
            "period_current", "period_mean_current", "period_shape", "supply_basis",
            "supply_classes", "supply_within_period",
            "periodic_column", "periodic_mean",

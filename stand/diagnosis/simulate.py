@@ -26,12 +26,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stand.diagnosis.backlash_load import load_state
-from stand.diagnosis.coupling_load import coupling_state
 from stand.diagnosis.dry_friction import friction_step
 from stand.diagnosis.model import (
     EDGE_SAMPLES,
+    LOAD_COLUMNS,
     FittedModel,
+    load_motion,
     period_current,
     period_shape,
     periodic_mean,
@@ -139,14 +139,8 @@ def _simulate_together(models: list[FittedModel], sig: Signals, seg: Segments,
     step = _Stepper(models, sig, len(first), kind)
     count = len(models)
     anchor = _State(np.tile(sig.theta_f[first], count), np.tile(sig.omega_meas[first], count))
-    if spec.backlash_gap is not None:
-        loads = [load_state(sig, model.spec.backlash_gap or 0.0,
-                            model.spec.backlash_restitution) for model in models]
-        anchor.theta_l = np.concatenate([tl[first] for tl, _ in loads])
-        anchor.omega_l = np.concatenate([wl[first] for _, wl in loads])
-    elif spec.coupling_hz is not None:
-        loads = [coupling_state(sig, model.spec.coupling_hz or 0.0, model.spec.coupling_zeta)
-                 for model in models]
+    if spec.backlash_gap is not None or spec.coupling_hz is not None:
+        loads = [load_motion(model.spec, sig) for model in models]
         anchor.theta_l = np.concatenate([tl[first] for tl, _ in loads])
         anchor.omega_l = np.concatenate([wl[first] for _, wl in loads])
     # a coupled load fitted stiffer than the sub-steps resolve (tens of times the rotor's
@@ -226,7 +220,7 @@ def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
 def _load_ratio(coef: dict[str, float]) -> float:
     """``J_load/J`` of a model's load (behind a backlash or a compliant coupling), 0
     without one or for an unphysical (positive) coefficient."""
-    return max(-coef.get("load_accel", 0.0), -coef.get("coupling_accel", 0.0), 0.0)
+    return max(0.0, *(-coef.get(name, 0.0) for name in LOAD_COLUMNS))
 
 
 class _Stepper:
