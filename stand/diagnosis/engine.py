@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from stand import effects
-from stand.diagnosis import coupling, input_weight, kicks, supply_limit
+from stand.diagnosis import coupling, drag, input_weight, kicks, supply_limit
 from stand.diagnosis.current_noise import current_noise
 from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
 from stand.diagnosis.loop_input import loop_inputs
@@ -217,16 +217,21 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     scores.sort(key=lambda e: e.gap_percent)
     chosen, final, steps = select(bench, base, singles, {e.effect: e for e in scores},
                                    max_effects)
-    # a load behind the motor (a backlash) that one on a compliant coupling simulates
-    # better is that coupling
-    behind = next((name for name in chosen if effects.get(name).load_behind), None)
-    coupled = None if behind is None else coupling.competitor(bench, final, behind)
-    coupled_notes = [] if coupled is None else [coupled.note(final.gap)]
-    if coupled is not None:
-        chosen = [name for name in chosen if name != behind]
-        final = coupled.without
     floor = noise_floor(ho, bench.scale)
     noise_gap = noise_gap_percent(sampled, bench.scale, bench.seg.horizon, base.model)
+    # a load behind the motor (a backlash) that one on a compliant coupling simulates
+    # better is that coupling; a dry friction that leaves a gap beyond the noise, which
+    # a drag continuous through zero simulates better, is that drag
+    behind = next((name for name in chosen if effects.get(name).load_behind), None)
+    friction = next((name for name in chosen if effects.get(name).jumps_at_reversal), None)
+    replaced: coupling.Coupled | drag.Dragged | None = (
+        None if behind is None else coupling.competitor(bench, final, behind))
+    if replaced is None and friction is not None and not within_noise(final.gap, noise_gap):
+        replaced = drag.competitor(bench, final, friction)
+    replaced_notes = [] if replaced is None else [replaced.note(final.gap)]
+    if replaced is not None:
+        chosen = [name for name in chosen if name != replaced.dropped]
+        final = replaced.without
     residual_final = equation_residual(final.model, ho)
     residual_train = equation_residual(final.model, tr)
     noise = (current_noise(final.model, tr, residual_train),
@@ -246,9 +251,9 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                    speed_shrink=speed.shrink if speed else 0.0, share=share,
                    p_drift=drift.p_value if drift else 1.0,
                    drift_shrink=drift.shrink if drift else 0.0)
-    # the coupled load is outside the vocabulary: a gap beyond the noise without the
-    # backlash it stood in for is `unexplained`, whatever its size next to the rest
-    left = rule() or (coupled is not None and coupling.unexplained_after(final.gap, noise_gap))
+    # the coupled load or the drag is outside the vocabulary: a gap beyond the noise
+    # without the effect it stood in for is `unexplained`, whatever its size next to the rest
+    left = rule() or (replaced is not None and coupling.unexplained_after(final.gap, noise_gap))
     # a shape the rule reads beyond the noise gap, found within it: said in a note
     held = within_noise(final.gap, noise_gap) and rule(hold_within_noise=False)
     names = chosen + ([UNEXPLAINED] if left else [])
@@ -284,11 +289,11 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         drift_structure_p_value=drift.p_value if drift else None,
         drift_structure_shrink=drift.shrink if drift else None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
-               + bench.revisions + bench.set_aside + coupled_notes
+               + bench.revisions + bench.set_aside + replaced_notes
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
                + (_structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
                                   along.test.p_value, speed, share, drift)
-                  if coupled is None else [])
+                  if replaced is None else [])
                + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
                                     along.test.p_value, speed, drift)
                + _phase_note(along.phase_share)),

@@ -190,7 +190,7 @@ def _positions(step: _Stepper, anchor: _State, drive: np.ndarray,
 
 
 #: What models stepped together share (:func:`_kind`).
-Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool, bool]
+Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool, bool, bool]
 
 
 def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
@@ -201,8 +201,10 @@ def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
     # a coupling's mode, as the motor meets it: ωn·sqrt(1 + J_l/J)
     mode = (2.0 * math.pi * spec.coupling_hz * math.sqrt(1.0 + _load_ratio(c))
             if spec.coupling_hz is not None else 0.0)
+    # a drag continuous through zero is steepest there: |c_drag|/ω_d
+    drag = abs(c.get("drag", 0.0)) / spec.drag_ws if spec.drag_ws is not None else 0.0
     rate = max(abs(model.c_omega), math.sqrt(abs(model.c_theta)),
-               (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top, mode)
+               (spec.cogging_N or 0) * top, (spec.ripple_N or 0) * top, mode, drag)
     # a backlash contact is found at the end of a sub-step (BACKLASH_SUBSTEPS)
     gap = spec.backlash_gap
     contact = min(BACKLASH_SUBSTEPS, math.ceil(top * sig.dt_s / gap)) if gap else 1
@@ -214,7 +216,7 @@ def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
     dry = friction and fc >= 0 and fc + (fs if stribeck else 0.0) > 0
     pushing = friction and not stribeck and fc < 0
     return (n_sub, spec.offset, spec.cogging_N, spec.ripple_N, gap is not None, friction,
-            stribeck, dry, pushing, spec.coupling_hz is not None)
+            stribeck, dry, pushing, spec.coupling_hz is not None, spec.drag_ws is not None)
 
 
 def _load_ratio(coef: dict[str, float]) -> float:
@@ -232,7 +234,7 @@ class _Stepper:
                  kind: Kind) -> None:
         self.sig, self.spec, self.segments = sig, models[0].spec, segments
         (self.n_sub, _, _, _, backlash, self.friction, self.stribeck, self.dry,
-         self.pushing, self.coupled) = kind
+         self.pushing, self.coupled, self.dragged) = kind
         coef = [model.coef for model in models]
 
         def of(name: str) -> np.ndarray | float:
@@ -259,6 +261,8 @@ class _Stepper:
         self.fc = self.rows([-c.get("sign", 0.0) for c in coef])
         self.fs = self.rows([-c.get("stribeck", 0.0) for c in coef])
         self.ws = self.rows([model.spec.stribeck_ws or 1.0 for model in models])
+        self.drag = of("drag")
+        self.drag_ws = self.rows([model.spec.drag_ws or 1.0 for model in models])
         self.smooth = friction_smoothing(sig)
         self.h = sig.dt_s / self.n_sub
         # The speed's own rate c_ω stepped exactly: over a sub-step the speed relaxes at
@@ -292,6 +296,8 @@ class _Stepper:
             a_load = (self.mode_sq * (theta - st.theta_l)
                       + self.mode_damping * (omega - st.omega_l))
             a = a - ratio * a_load
+        if self.dragged:  # smooth: held over the sub-step like the other torques
+            a = a + self.drag * np.tanh(omega / self.drag_ws)
         step = omega * h  # position-periodic torques: their mean over the sub-step
         if spec.cogging_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.cogging_N, theta, step)

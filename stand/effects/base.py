@@ -88,6 +88,9 @@ class Effect:
     load_behind : bool
         Whether its model is a load inertia behind the motor: a verdict naming it meets a
         load on a compliant coupling (:mod:`stand.diagnosis.coupling`).
+    jumps_at_reversal : bool
+        Whether it is a dry friction, a torque that jumps with the sign of the speed: a
+        verdict naming it meets a drag continuous through zero (:mod:`stand.diagnosis.drag`).
     """
 
     name: ClassVar[str]
@@ -102,6 +105,7 @@ class Effect:
     approximation_share: ClassVar[float] = APPROXIMATION_SHARE
     spec_fields: ClassVar[tuple[str, ...]] = ()
     load_behind: ClassVar[bool] = False
+    jumps_at_reversal: ClassVar[bool] = False
 
     # --- physics ---------------------------------------------------------------------
 

@@ -63,6 +63,8 @@ class CoulombFriction(Effect):
     # noise, on the benchmark's exact verdicts at most 0.10 (dev seeds 260-261);
     # allowed twice the real axis's (docs/results/diagnose.md)
     approximation_share: ClassVar[float] = 0.5
+    # a dry friction jumps at reversal, where a drag of a brake or a fluid does not
+    jumps_at_reversal: ClassVar[bool] = True
 
     Tc: float
 

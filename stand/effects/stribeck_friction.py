@@ -54,6 +54,7 @@ class StribeckFriction(Effect):
     nests: ClassVar[tuple[str, ...]] = (CoulombFriction.name,)
     separated_by: ClassVar[str] = CoulombFriction.separated_by
     approximation_share: ClassVar[float] = CoulombFriction.approximation_share
+    jumps_at_reversal: ClassVar[bool] = CoulombFriction.jumps_at_reversal
     # ωs has a flat optimum (it trades against the static excess), so a fresh search on
     # HOLDOUT can land elsewhere for a real effect: its TRAIN structure is re-fitted there
     refit_on_holdout: ClassVar[bool] = True

@@ -89,19 +89,6 @@ def test_a_speed_shape_after_a_named_effect_counts_near_the_noise_only_when_stro
     assert not unexplained(10.0, 0.2, noise, named=True, p_speed=1e-6, speed_shrink=0.9)
 
 
-def test_a_drag_fitted_near_the_noise_by_a_dry_friction_leaves_its_speed_shape() -> None:
-    # held-out benchmark seed 301 case 50: an eddy-current brake (a drag peaking at
-    # 223 rad/s) under a current PRBS; Coulomb friction and D/J fit it to 2.1 times the
-    # noise gap, and what is left grows with the speed beyond a level and a slope (p 1e-18,
-    # shrink 0.38): the verdict was `coulomb_friction`
-    case, train, holdout = case_runs(50, 301, held_out=True, current_mean=True)
-    assert list(case.outside) == ["eddy_brake"]
-    result = diagnose(train, holdout)
-    assert result.noise_gap_percent < result.verdict_gap_percent
-    assert result.verdict_gap_percent < UNEXPLAINED_FACTOR * result.noise_gap_percent
-    assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
-
-
 def test_a_remainder_beyond_noise_smaller_than_what_the_effects_explain_is_their_model() -> None:
     noise = 0.2
     # nothing named: beyond the noise factor is unexplained, within it is not
