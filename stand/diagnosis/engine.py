@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from stand import effects
-from stand.diagnosis import coupling, drag, input_weight, kicks, supply_limit
+from stand.diagnosis import coupling, drag, input_weight, kicks, load_friction, supply_limit
 from stand.diagnosis.current_noise import current_noise
 from stand.diagnosis.input_weight import PERIOD_MEAN_WEIGHT
 from stand.diagnosis.loop_input import loop_inputs
@@ -221,13 +221,15 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     noise_gap = noise_gap_percent(sampled, bench.scale, bench.seg.horizon, base.model)
     # a load behind the motor (a backlash) that one on a compliant coupling simulates
     # better is that coupling; a dry friction that leaves a gap beyond the noise, which
-    # a drag continuous through zero simulates better, is that drag
+    # a drag continuous through zero simulates better, is that drag, and one whose level
+    # grows with the torque carried has that beside it
     behind = next((name for name in chosen if effects.get(name).load_behind), None)
     friction = next((name for name in chosen if effects.get(name).jumps_at_reversal), None)
-    replaced: coupling.Coupled | drag.Dragged | None = (
+    replaced: coupling.Coupled | drag.Dragged | load_friction.Loaded | None = (
         None if behind is None else coupling.competitor(bench, final, behind))
     if replaced is None and friction is not None and not within_noise(final.gap, noise_gap):
-        replaced = drag.competitor(bench, final, friction)
+        replaced = (drag.competitor(bench, final, friction)
+                    or load_friction.competitor(bench, final, friction))
     replaced_notes = [] if replaced is None else [replaced.note(final.gap)]
     if replaced is not None:
         chosen = [name for name in chosen if name != replaced.dropped]

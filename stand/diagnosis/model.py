@@ -99,6 +99,10 @@ class ModelSpec:
         beside ``backlash_gap``.
     coupling_zeta : float
         Damping ratio of that mode.
+    load_friction : bool
+        A friction level that grows with the torque carried, ``|i|·sign(ω)`` (a gear
+        mesh's load-dependent loss): not a vocabulary effect, the competitor a dry
+        friction verdict is checked against (:mod:`.load_friction`).
     drag_ws : float or None
         Speed scale of a drag continuous through zero speed, ``tanh(ω/ω_d)``, rad/s:
         not a vocabulary effect, the competitor a dry friction verdict is checked
@@ -126,6 +130,7 @@ class ModelSpec:
     coupling_hz: float | None = None
     coupling_zeta: float = 0.0
     drag_ws: float | None = None
+    load_friction: bool = False
     input_weight: float = 0.5
     spring: bool = False
     #: Whether the speed loop's kicks of the current between samples are in the input
@@ -154,6 +159,8 @@ class ModelSpec:
             out.append("stribeck")
         if self.drag_ws is not None:
             out.append("drag")
+        if self.load_friction:
+            out.append("load_friction")
         if self.cogging_N is not None:
             out += ["cog_sin", "cog_cos"]
         if self.ripple_N is not None:
@@ -185,6 +192,7 @@ class ModelSpec:
             coupling_zeta=(other.coupling_zeta if other.coupling_hz is not None
                            else self.coupling_zeta),
             drag_ws=other.drag_ws if other.drag_ws is not None else self.drag_ws,
+            load_friction=self.load_friction or other.load_friction,
             input_weight=self.input_weight, spring=self.spring,
             kicks=self.kicks, supply=self.supply, lag=self.lag,
         )
@@ -426,6 +434,7 @@ def _column_key(spec: ModelSpec, name: str) -> tuple[object, ...]:
         "cog_sin": ("cog_sin", spec.cogging_N),
         "cog_cos": ("cog_cos", spec.cogging_N), "rip_sin": ("rip_sin", spec.ripple_N, *current),
         "rip_cos": ("rip_cos", spec.ripple_N, *current),
+        "load_friction": ("load_friction", *current),
         "load_accel": ("load", spec.backlash_gap, spec.backlash_restitution),
         "coupling_accel": ("coupling", spec.coupling_hz, spec.coupling_zeta),
     }[name]
@@ -454,6 +463,9 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
         return at_samples(period_mean(friction_speed(sig), spec.stribeck_ws or 1.0))
     if name == "drag":
         return at_samples(drag_mean(friction_speed(sig), spec.drag_ws or 1.0))
+    if name == "load_friction":
+        current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+        return at_samples(np.abs(current) * period_mean(friction_speed(sig)))
     if name in ("cog_sin", "cog_cos"):
         return at_samples(periodic_column(spec.cogging_N or 0, sig, name == "cog_sin"))
     if name in ("rip_sin", "rip_cos"):

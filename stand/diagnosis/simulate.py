@@ -190,7 +190,7 @@ def _positions(step: _Stepper, anchor: _State, drive: np.ndarray,
 
 
 #: What models stepped together share (:func:`_kind`).
-Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool, bool, bool]
+Kind = tuple[int, bool, int | None, int | None, bool, bool, bool, bool, bool, bool, bool, bool]
 
 
 def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
@@ -216,7 +216,8 @@ def _kind(model: FittedModel, sig: Signals, top: float) -> Kind:
     dry = friction and fc >= 0 and fc + (fs if stribeck else 0.0) > 0
     pushing = friction and not stribeck and fc < 0
     return (n_sub, spec.offset, spec.cogging_N, spec.ripple_N, gap is not None, friction,
-            stribeck, dry, pushing, spec.coupling_hz is not None, spec.drag_ws is not None)
+            stribeck, dry, pushing, spec.coupling_hz is not None, spec.drag_ws is not None,
+            spec.load_friction)
 
 
 def _load_ratio(coef: dict[str, float]) -> float:
@@ -234,7 +235,7 @@ class _Stepper:
                  kind: Kind) -> None:
         self.sig, self.spec, self.segments = sig, models[0].spec, segments
         (self.n_sub, _, _, _, backlash, self.friction, self.stribeck, self.dry,
-         self.pushing, self.coupled, self.dragged) = kind
+         self.pushing, self.coupled, self.dragged, self.loaded) = kind
         coef = [model.coef for model in models]
 
         def of(name: str) -> np.ndarray | float:
@@ -260,6 +261,8 @@ class _Stepper:
                                        for model, w in zip(models, modes, strict=True)])
         self.fc = self.rows([-c.get("sign", 0.0) for c in coef])
         self.fs = self.rows([-c.get("stribeck", 0.0) for c in coef])
+        # a friction level growing with the current carried: per unit of |i|
+        self.load_level = self.rows([-c.get("load_friction", 0.0) for c in coef])
         self.ws = self.rows([model.spec.stribeck_ws or 1.0 for model in models])
         self.drag = of("drag")
         self.drag_ws = self.rows([model.spec.drag_ws or 1.0 for model in models])
@@ -305,10 +308,12 @@ class _Stepper:
         if spec.ripple_N is not None:
             mean_sin, mean_cos = periodic_mean(spec.ripple_N, theta, step)
             a = a + (i + self.rip_shift) * (self.rip_sin * mean_sin + self.rip_cos * mean_cos)
-        # without a Stribeck term the friction level is the constant Coulomb level
+        # without a Stribeck term the friction level is the Coulomb level (and what the
+        # current carried adds to it)
+        fc = self.fc + self.load_level * np.abs(i) if self.loaded else self.fc
         level: np.ndarray | float = (
-            self.fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.stribeck
-            else self.fc if self.friction else 0.0)
+            fc + self.fs * np.exp(-((omega / self.ws) ** 2)) if self.stribeck
+            else fc if self.friction else 0.0)
         scale: np.ndarray | float = 1.0
         h_eff: np.ndarray | float = self.h_free
         if gap is not None:
@@ -323,7 +328,7 @@ class _Stepper:
             # dry friction as the continuous shaft meets it: its zero crossing, sticking
             # and breakaway located in the step, the Stribeck level averaged along it
             new, mean = friction_step(omega, omega + h_eff * scale * a, h_eff * scale,
-                                      self.fc, self.fs if self.stribeck else 0.0, self.ws)
+                                      fc, self.fs if self.stribeck else 0.0, self.ws)
             st.theta = theta + h * mean
         else:
             if self.friction:

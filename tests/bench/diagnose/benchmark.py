@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from stand.diagnosis import coupling, diagnose, drag
+from stand.diagnosis import coupling, diagnose, drag, load_friction
 from stand.diagnosis.noise import unexplained
 from stand.effects import EFFECTS, UNEXPLAINED, approximation_share, nested_in
 from stand.errors import StandError
@@ -485,9 +485,10 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
                        along_shrink=row.get("position_structure_shrink", 1.0),
                        share=approximation_share(named))
     # a verdict that dropped backlash for a compliant coupling (stand.diagnosis.coupling),
-    # or met a drag continuous through zero speed (stand.diagnosis.drag)
+    # or met a drag continuous through zero speed (stand.diagnosis.drag) or a friction
+    # growing with the torque carried (stand.diagnosis.load_friction)
     if any(word in note for note in row.get("notes", [])
-           for word in (coupling.DROPPED, drag.DROPPED, drag.BESIDE)):
+           for word in (coupling.DROPPED, drag.DROPPED, drag.BESIDE, load_friction.GROWS)):
         left = left or coupling.unexplained_after(row["verdict_gap_percent"],
                                                   row["noise_gap_percent"])
     words = named + ([UNEXPLAINED] if left else [])
