@@ -14,7 +14,7 @@ and a drag ``T_d·tanh(ω/ω_d)`` in place of the friction, ``ω_d`` searched ov
 typical speed (each fitted on TRAIN and simulated on TRAIN, the best kept; a best at
 either end is no fit: at the low end the drag is the friction's jump, at the high end
 the viscous slope; an eddy-current brake ``T·2x/(1 + x²)``, ``x = ω/ω_c``, has the
-slope and the level of ``T·tanh(ω/ω_d)`` at ``ω_d = ω_c/2``). It replaces the friction
+slope and the level of ``T·tanh(ω/ω_d)`` at ``ω_d = ω_c/2``). It wins over the friction
 where
 
 - it simulates HOLDOUT significantly better than the verdict (the paired test on the

@@ -253,8 +253,9 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                    speed_shrink=speed.shrink if speed else 0.0, share=share,
                    p_drift=drift.p_value if drift else 1.0,
                    drift_shrink=drift.shrink if drift else 0.0)
-    # the coupled load or the drag is outside the vocabulary: a gap beyond the noise
-    # without the effect it stood in for is `unexplained`, whatever its size next to the rest
+    # the coupled load, the drag and the friction growing with the torque are outside the
+    # vocabulary: a gap beyond the noise that the verdict leaves without them is
+    # `unexplained`, whatever its size next to the rest
     left = rule() or (replaced is not None and coupling.unexplained_after(final.gap, noise_gap))
     # a shape the rule reads beyond the noise gap, found within it: said in a note
     held = within_noise(final.gap, noise_gap) and rule(hold_within_noise=False)

@@ -99,14 +99,15 @@ class ModelSpec:
         beside ``backlash_gap``.
     coupling_zeta : float
         Damping ratio of that mode.
-    load_friction : bool
-        A friction level that grows with the torque carried, ``|i|·sign(ω)`` (a gear
-        mesh's load-dependent loss): not a vocabulary effect, the competitor a dry
-        friction verdict is checked against (:mod:`.load_friction`).
     drag_ws : float or None
         Speed scale of a drag continuous through zero speed, ``tanh(ω/ω_d)``, rad/s:
         not a vocabulary effect, the competitor a dry friction verdict is checked
-        against (:mod:`.drag`). Never beside ``coulomb`` or ``stribeck_ws``.
+        against in the friction's place (:mod:`.drag`; beside it only to see whether
+        the friction stays).
+    load_friction : bool
+        A friction level that grows with the torque carried, ``|i|·sign(ω)`` (a gear
+        mesh's load-dependent loss): not a vocabulary effect, the competitor a dry
+        friction verdict is checked against beside its friction (:mod:`.load_friction`).
     input_weight : float
         How the current between two samples is reconstructed: over the period from
         sample ``n`` to ``n + 1`` it is ``(1 − w)·i[n] + w·i[n + 1]``. ``0.5`` is the

@@ -90,7 +90,8 @@ class Effect:
         load on a compliant coupling (:mod:`stand.diagnosis.coupling`).
     jumps_at_reversal : bool
         Whether it is a dry friction, a torque that jumps with the sign of the speed: a
-        verdict naming it meets a drag continuous through zero (:mod:`stand.diagnosis.drag`).
+        verdict naming it meets a drag continuous through zero (:mod:`stand.diagnosis.drag`)
+        and a level growing with the torque carried (:mod:`stand.diagnosis.load_friction`).
     """
 
     name: ClassVar[str]
