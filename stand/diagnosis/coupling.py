@@ -45,8 +45,9 @@ from stand import effects
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.noise import explained_percent, within_noise
 from stand.diagnosis.scoring import Bench, Scored
+from stand.diagnosis.selection import speed_improvement
 from stand.diagnosis.signals import Signals
-from stand.diagnosis.significance import PairedTest, paired_improvement
+from stand.diagnosis.significance import PairedTest
 from stand.effects.base import NO_FIT, Simulated, best, ratio_ok
 
 #: What the note of a verdict that dropped an effect for a coupling says.
@@ -149,7 +150,7 @@ def competitor(bench: Bench, verdict: Scored, behind: str) -> Coupled | None:
     if spec == NO_FIT:
         return None
     scored = bench.score(spec)
-    test = paired_improvement(verdict.sse[:1], scored.sse[:1])
+    test = speed_improvement(verdict, scored)
     if not test.significant(1):
         return None
     rest = bench.score(base)

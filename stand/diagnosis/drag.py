@@ -19,7 +19,7 @@ where
 
 - it simulates HOLDOUT significantly better than the verdict (the paired test on the
   simulated speed, as for a candidate effect,
-  :func:`stand.diagnosis.significance.paired_improvement`),
+  :func:`stand.diagnosis.selection.speed_improvement`),
 - and the same search on HOLDOUT finds the same speed scale within :data:`SCALE_RATIO`.
 
 What the stand has is then a drag that does not jump at reversal. The friction stays in
@@ -38,8 +38,9 @@ import numpy as np
 
 from stand.diagnosis.model import ModelSpec
 from stand.diagnosis.scoring import Bench, Scored
+from stand.diagnosis.selection import speed_improvement
 from stand.diagnosis.signals import Signals
-from stand.diagnosis.significance import PairedTest, paired_improvement
+from stand.diagnosis.significance import PairedTest
 from stand.effects.base import NO_FIT, Simulated, best, ratio_ok
 
 #: What the note of a verdict that dropped a friction for a smooth drag says.
@@ -143,7 +144,7 @@ def competitor(bench: Bench, verdict: Scored, friction: str) -> Dragged | None:
     if spec == NO_FIT:
         return None
     scored = bench.score(spec)
-    test = paired_improvement(verdict.sse[:1], scored.sse[:1])
+    test = speed_improvement(verdict, scored)
     if not test.significant(1):
         return None
     again = search(base, bench.holdout, bench.self_gaps(bench.holdout))
@@ -151,7 +152,7 @@ def competitor(bench: Bench, verdict: Scored, friction: str) -> Dragged | None:
     if again == NO_FIT or not ratio_ok(ws, again_ws, SCALE_RATIO):
         return None
     both = bench.score(replace(verdict.spec, drag_ws=spec.drag_ws))
-    kept = paired_improvement(scored.sse[:1], both.sse[:1]).significant(1)
+    kept = speed_improvement(scored, both).significant(1)
     return Dragged(scored=scored, without=verdict if kept else bench.score(base), test=test,
                    friction=friction, dropped=None if kept else friction, ws=ws,
                    holdout_ws=again_ws)

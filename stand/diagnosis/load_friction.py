@@ -14,7 +14,7 @@ amperes of friction per ampere carried), fitted on TRAIN. It is kept where
 
 - it simulates HOLDOUT significantly better than the verdict (the paired test on the
   simulated speed, as for a candidate effect,
-  :func:`stand.diagnosis.significance.paired_improvement`),
+  :func:`stand.diagnosis.selection.speed_improvement`),
 - its ``μ`` lies between :data:`MIN_SHARE` and :data:`MAX_SHARE`, and the same model
   fitted on HOLDOUT finds it within :data:`SHARE_RATIO`.
 
@@ -30,7 +30,8 @@ from dataclasses import dataclass, replace
 
 from stand.diagnosis.model import FittedModel, fit
 from stand.diagnosis.scoring import Bench, Scored
-from stand.diagnosis.significance import PairedTest, paired_improvement
+from stand.diagnosis.selection import speed_improvement
+from stand.diagnosis.significance import PairedTest
 from stand.effects.base import ratio_ok
 from stand.errors import NotExcitedError
 
@@ -109,7 +110,7 @@ def competitor(bench: Bench, verdict: Scored, friction: str) -> Loaded | None:
     mu, again_mu = share(scored.model), share(again)
     if not MIN_SHARE <= mu <= MAX_SHARE or not ratio_ok(mu, again_mu, SHARE_RATIO):
         return None
-    test = paired_improvement(verdict.sse[:1], scored.sse[:1])
+    test = speed_improvement(verdict, scored)
     if not test.significant(1):
         return None
     return Loaded(scored=scored, without=verdict, test=test, friction=friction, mu=mu,

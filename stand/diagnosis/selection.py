@@ -193,6 +193,12 @@ def form_better(test: PairedTest) -> bool:
     return test.p_value < FAMILY_ALPHA and test.shrink > 0.0
 
 
+def speed_improvement(base: Scored, cand: Scored) -> PairedTest:
+    """The paired holdout test of ``cand`` against ``base`` on the simulated speed alone
+    (the first row of :attr:`~stand.diagnosis.scoring.Scored.sse`)."""
+    return paired_improvement(base.sse[:1], cand.sse[:1])
+
+
 def improvement(base: Scored, cand: Scored) -> PairedTest:
     """The paired holdout test of ``cand`` against ``base``.
 
@@ -202,10 +208,10 @@ def improvement(base: Scored, cand: Scored) -> PairedTest:
     """
     if any(e.speed_test_only and e.present(cand.spec) and not e.present(base.spec)
            for e in effects.all_effects()):
-        test = paired_improvement(base.sse[:1], cand.sse[:1])
+        test = speed_improvement(base, cand)
     else:
         test = paired_improvement(base.sse, cand.sse)
     return replace(test, p_value=min(1.0, test.p_value * cand.looks))
 
 
-__all__ = ["form_better", "improvement", "revise", "reweighted", "select"]
+__all__ = ["form_better", "improvement", "revise", "reweighted", "select", "speed_improvement"]

@@ -11,7 +11,7 @@ import pytest
 from stand.diagnosis import diagnose, drag
 from stand.diagnosis.smooth_drag import drag_mean
 from stand.effects import UNEXPLAINED
-from tests.bench.diagnose.benchmark import case_runs, rescore
+from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 
@@ -74,15 +74,3 @@ def test_a_coulomb_friction_that_simulates_better_beside_the_drag_stays() -> Non
     assert any(note.startswith(f"coulomb_friction {drag.BESIDE}") for note in result.notes), \
         result.notes
 
-
-def test_the_benchmark_rescores_a_row_whose_friction_met_a_drag_as_unexplained() -> None:
-    # a friction kept beside a drag left 1.0 % of 5 % (0.5 of what it explains beyond
-    # noise would be its approximation): with the drag's note the row stays unexplained
-    row = {"gap_percent": 5.0, "verdict_gap_percent": 1.0, "noise_gap_percent": 0.2,
-           "structure_p_value": 1.0, "position_structure_p_value": 1.0,
-           "position_structure_shrink": 0.0, "speed_structure_p_value": 1.0,
-           "speed_structure_shrink": 0.0, "verdict": f"coulomb_friction+{UNEXPLAINED}",
-           "truth": ["outside:eddy_brake"]}
-    assert rescore(row)["verdict"] == "coulomb_friction"
-    noted = rescore({**row, "notes": [f"coulomb_friction {drag.BESIDE}: ..."]})
-    assert noted["verdict"] == f"coulomb_friction+{UNEXPLAINED}" and noted["unexplained"]

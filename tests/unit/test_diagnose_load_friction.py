@@ -9,7 +9,7 @@ import pytest
 
 from stand.diagnosis import diagnose, load_friction
 from stand.effects import UNEXPLAINED
-from tests.bench.diagnose.benchmark import case_runs, rescore
+from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
 
@@ -37,13 +37,3 @@ def test_a_constant_coulomb_friction_does_not_grow_with_the_torque() -> None:
     assert result.verdict == "coulomb_friction", result.message
     assert not any(load_friction.GROWS in note for note in result.notes)
 
-
-def test_the_benchmark_rescores_a_row_whose_friction_grows_as_unexplained() -> None:
-    row = {"gap_percent": 5.0, "verdict_gap_percent": 1.0, "noise_gap_percent": 0.2,
-           "structure_p_value": 1.0, "position_structure_p_value": 1.0,
-           "position_structure_shrink": 0.0, "speed_structure_p_value": 1.0,
-           "speed_structure_shrink": 0.0, "verdict": f"coulomb_friction+{UNEXPLAINED}",
-           "truth": ["outside:mesh_friction"]}
-    assert rescore(row)["verdict"] == "coulomb_friction"
-    noted = rescore({**row, "notes": [f"the level of coulomb_friction {load_friction.GROWS}"]})
-    assert noted["verdict"] == f"coulomb_friction+{UNEXPLAINED}" and noted["unexplained"]

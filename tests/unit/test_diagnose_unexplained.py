@@ -11,9 +11,10 @@ torque (25 mN·m) at the run's typical speed of about 100 rad/s (50 ms PRBS step
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stand import effects
-from stand.diagnosis import diagnose
+from stand.diagnosis import diagnose, drag, load_friction
 from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
     NEAR_NOISE_SPEED_SHRINK,
@@ -262,6 +263,24 @@ def test_the_benchmark_rescores_a_row_with_its_verdicts_share() -> None:
     assert backlash["verdict"] == "backlash" and not backlash["unexplained"]
     cogging = rescore({**row, "verdict": "cogging", "truth": ["cogging"]})
     assert cogging["verdict"] == f"cogging+{UNEXPLAINED}" and cogging["unexplained"]
+
+
+@pytest.mark.parametrize(("note", "truth"), [
+    (f"coulomb_friction {drag.BESIDE}: ...", "outside:eddy_brake"),
+    (f"the level of coulomb_friction {load_friction.GROWS}", "outside:mesh_friction")])
+def test_the_benchmark_rescores_a_row_whose_friction_met_a_competitor_as_unexplained(
+        note: str, truth: str) -> None:
+    # a friction left 1.0 % of 5 % (0.5 of what it explains beyond noise would be its
+    # approximation): with the note of a drag beside it, or of its level growing with
+    # the torque carried (stand.diagnosis.drag, .load_friction), the row stays unexplained
+    row = {"gap_percent": 5.0, "verdict_gap_percent": 1.0, "noise_gap_percent": 0.2,
+           "structure_p_value": 1.0, "position_structure_p_value": 1.0,
+           "position_structure_shrink": 0.0, "speed_structure_p_value": 1.0,
+           "speed_structure_shrink": 0.0, "verdict": f"coulomb_friction+{UNEXPLAINED}",
+           "truth": [truth]}
+    assert rescore(row)["verdict"] == "coulomb_friction"
+    noted = rescore({**row, "notes": [note]})
+    assert noted["verdict"] == f"coulomb_friction+{UNEXPLAINED}" and noted["unexplained"]
 
 
 def test_an_effect_of_the_vocabulary_leaves_nothing_unexplained() -> None:
