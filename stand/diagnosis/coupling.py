@@ -26,8 +26,8 @@ replaces the backlash where
 
 What the stand has is then a compliant coupling, not a dead zone: the verdict drops
 backlash, with a note that names the mode, and ends in ``unexplained`` (CONTRACT §3: an
-effect outside the vocabulary) where the gap without it is beyond the noise gap
-(:func:`unexplained_after`).
+effect outside the vocabulary; beyond the noise by the paired test, whatever the size of
+the gap the verdict's other effects leave).
 
 A backlash's damped impacts fit as a heavily damped coupling: the damping searched
 stops at :data:`DAMPINGS`' highest, 0.4, which bounds it (fresh seeds 308 and 309 each
@@ -43,7 +43,7 @@ import numpy as np
 
 from stand import effects
 from stand.diagnosis.model import ModelSpec
-from stand.diagnosis.noise import explained_percent, within_noise
+from stand.diagnosis.noise import explained_percent
 from stand.diagnosis.scoring import Bench, Scored
 from stand.diagnosis.selection import speed_improvement
 from stand.diagnosis.signals import Signals
@@ -166,12 +166,4 @@ def competitor(bench: Bench, verdict: Scored, behind: str) -> Coupled | None:
                    zeta=spec.coupling_zeta, load_ratio=ratio, holdout_hz=again_hz)
 
 
-def unexplained_after(verdict_gap: float, noise_gap: float) -> bool:
-    """Whether a verdict that dropped backlash for a coupling ends in ``unexplained``:
-    the gap it leaves (%) beyond the noise gap (:func:`stand.diagnosis.noise.within_noise`).
-    The coupling is an effect beyond noise as much as the backlash it replaces was (both
-    passed the paired test); only a gap the noise explains is ``none``."""
-    return not within_noise(verdict_gap, noise_gap)
-
-
-__all__ = ["DROPPED", "Coupled", "competitor", "modes", "search", "unexplained_after"]
+__all__ = ["DROPPED", "Coupled", "competitor", "modes", "search"]

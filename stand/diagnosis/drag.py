@@ -6,10 +6,11 @@ from zero with the speed and levels off (or falls again) over a speed scale the 
 resolves. No vocabulary effect models it; beside the nominal model's viscous slope, a
 dry friction level is what the selection names for it, and explains most of it.
 
-So a verdict that names a dry friction, and leaves a gap beyond the noise gap, meets a
-competitor (within the noise gap the friction explains all that noise lets the run show,
-:func:`stand.diagnosis.noise.within_noise`): the verdict's other effects
-and a drag ``T_d·tanh(ω/ω_d)`` in place of the friction, ``ω_d`` searched over
+So a verdict that names a dry friction meets a competitor, also where the gap it
+leaves is within the noise gap (:func:`stand.diagnosis.noise.within_noise`: a size that
+an eddy brake's difference from a friction level often stays within, while the paired
+test on the simulated speed, which allows for the noise, still tells them apart): the
+verdict's other effects and a drag ``T_d·tanh(ω/ω_d)`` in place of the friction, ``ω_d`` searched over
 :data:`SCALE_POINTS` speeds from :data:`LOW_SHARE` to :data:`HIGH_SHARE` of the run's
 typical speed (each fitted on TRAIN and simulated on TRAIN, the best kept; a best at
 either end is no fit: at the low end the drag is the friction's jump, at the high end
@@ -26,8 +27,7 @@ What the stand has is then a drag that does not jump at reversal. The friction s
 the verdict only where it still simulates HOLDOUT significantly better beside the drag
 (a dry friction and a brake together); else the verdict drops it. A note names the
 drag's speed scale, and the verdict ends in ``unexplained`` (CONTRACT §3: an effect
-outside the vocabulary) where the gap its named effects leave is beyond the noise gap
-(:func:`stand.diagnosis.coupling.unexplained_after`).
+outside the vocabulary, beyond the noise by the paired test).
 """
 
 from __future__ import annotations

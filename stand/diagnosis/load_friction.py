@@ -8,9 +8,10 @@ preload the load changes. No vocabulary effect models it: a constant friction le
 drives (there ``|T|·sign(ω)`` is the torque itself); only braking, where the torque
 opposes the speed, shows it.
 
-So a verdict that names a dry friction, and leaves a gap beyond the noise gap, meets a
-competitor: the verdict and a level ``μ·|i|·sign(ω)`` beside its friction (``μ`` in
-amperes of friction per ampere carried), fitted on TRAIN. It is kept where
+So a verdict that names a dry friction (and that no drag replaced,
+:mod:`stand.diagnosis.drag`) meets a competitor, also within the noise gap: the verdict
+and a level ``μ·|i|·sign(ω)`` beside its friction (``μ`` in amperes of friction per
+ampere carried), fitted on TRAIN. It is kept where
 
 - it simulates HOLDOUT significantly better than the verdict (the paired test on the
   simulated speed, as for a candidate effect,
@@ -20,8 +21,7 @@ amperes of friction per ampere carried), fitted on TRAIN. It is kept where
 
 The verdict keeps the friction (a mesh's loss also jumps at reversal), with a note
 that names ``μ``, and ends in ``unexplained`` (CONTRACT §3: an effect outside the
-vocabulary) where the gap it leaves is beyond the noise gap
-(:func:`stand.diagnosis.coupling.unexplained_after`).
+vocabulary, beyond the noise by the paired test).
 """
 
 from __future__ import annotations

@@ -486,11 +486,11 @@ def rescore(row: dict[str, Any]) -> dict[str, Any]:
                        share=approximation_share(named))
     # a verdict that dropped backlash for a compliant coupling (stand.diagnosis.coupling),
     # or met a drag continuous through zero speed (stand.diagnosis.drag) or a friction
-    # growing with the torque carried (stand.diagnosis.load_friction)
-    if any(word in note for note in row.get("notes", [])
-           for word in (coupling.DROPPED, drag.DROPPED, drag.BESIDE, load_friction.GROWS)):
-        left = left or coupling.unexplained_after(row["verdict_gap_percent"],
-                                                  row["noise_gap_percent"])
+    # growing with the torque carried (stand.diagnosis.load_friction): unexplained after
+    # its effects, whatever the gap they leave
+    left = left or any(word in note for note in row.get("notes", [])
+                       for word in (coupling.DROPPED, drag.DROPPED, drag.BESIDE,
+                                    load_friction.GROWS))
     words = named + ([UNEXPLAINED] if left else [])
     verdict = "+".join(words) if words else "none"
     shown = [p for p in verdict.split("+") if p != UNEXPLAINED] or [verdict]
