@@ -486,6 +486,47 @@ def _travel_orders(sig: Signals) -> np.ndarray:
     return orders
 
 
+def _finer_orders(sig: Signals, orders: np.ndarray, around: float) -> np.ndarray:
+    """Where :func:`_travel_orders` spaced ``orders`` wider than its step (a travel of
+    more than about 105 revolutions gives more orders than :data:`MAX_TRAVEL_ORDERS`),
+    the orders at that step within one spacing of ``around``; else none. Four steps
+    apart (420 revolutions), a level half a spacing off the nearest order drifts half a
+    cycle against its columns over the travel, and they take little of it (held-out
+    seeds 308 and 309, docs/results/diagnose.md)."""
+    revolutions = float(np.ptp(sig.theta_f)) / (2 * np.pi)
+    if orders.size < 2 or revolutions <= 0:
+        return np.array([])
+    spacing, step = orders[1] - orders[0], ORDER_STEP_OF_TRAVEL / revolutions
+    if spacing <= step * (1 + 1e-9):
+        return np.array([])
+    fine = np.arange(around - spacing, around + spacing, step)
+    return fine[(fine >= orders[0]) & (fine <= orders[-1])]
+
+
+def _pick_order(theta: np.ndarray, sign: np.ndarray, q: np.ndarray, left: np.ndarray,
+                orders: np.ndarray) -> tuple[float, float | None]:
+    """Of evenly spaced ``orders``, the one whose four columns (:func:`_periodic`, beside
+    the nuisance columns of orthonormal basis ``q``) take most of ``left``, and what they
+    take; ``(-1, None)`` for no orders."""
+    best, best_order = -1.0, None
+    if not orders.size:
+        return best, best_order
+    # each order's sin and cos follow from the last one's by a rotation through step·θ
+    # (two trigonometric calls in all, not two per order; the picked order's columns
+    # are computed afresh by the caller)
+    step = orders[1] - orders[0] if orders.size > 1 else 0.0
+    sin, cos = np.sin(orders[0] * theta), np.cos(orders[0] * theta)
+    sin_step, cos_step = np.sin(step * theta), np.cos(step * theta)
+    x = np.empty((theta.size, 4))
+    for order in orders:
+        x[:, 0], x[:, 1], x[:, 2], x[:, 3] = sign * sin, sign * cos, sin, cos
+        taken = _taken(x - q @ (q.T @ x), left)
+        if taken > best:
+            best, best_order = taken, float(order)
+        sin, cos = sin * cos_step + cos * sin_step, cos * cos_step - sin * sin_step
+    return best, best_order
+
+
 def _periodic(theta: np.ndarray, sign: np.ndarray, order: float) -> np.ndarray:
     """A friction level and a torque periodic along the travel at ``order`` cycles per
     revolution: ``sign(ω)·sin``, ``sign(ω)·cos``, ``sin``, ``cos`` of ``order·θ``, from
@@ -593,23 +634,15 @@ def along_travel_test(residual_train: np.ndarray, train: Signals,
     # an orthonormal basis of the nuisance columns' span (the speed terms repeat the
     # constant and the speed: directions of no weight are left out)
     q = _span(n_tr[edge] / np.maximum(np.linalg.norm(n_tr[edge], axis=0), 1e-300))
-    best, best_order = -1.0, None
     theta, sign = train.theta_f[edge], np.sign(train.omega_f)[edge]
     orders = _travel_orders(train)
-    if orders.size:
-        # the orders are evenly spaced: each one's sin and cos follow from the last
-        # one's by a rotation through step·θ (two trigonometric calls in all, not two
-        # per order; the picked order's columns are computed afresh below)
-        step = orders[1] - orders[0] if orders.size > 1 else 0.0
-        sin, cos = np.sin(orders[0] * theta), np.cos(orders[0] * theta)
-        sin_step, cos_step = np.sin(step * theta), np.cos(step * theta)
-        x = np.empty((theta.size, 4))
-    for order in orders:
-        x[:, 0], x[:, 1], x[:, 2], x[:, 3] = sign * sin, sign * cos, sin, cos
-        taken = _taken(x - q @ (q.T @ x), left)
-        if taken > best:
-            best, best_order = taken, float(order)
-        sin, cos = sin * cos_step + cos * sin_step, cos * cos_step - sin * sin_step
+    best, best_order = _pick_order(theta, sign, q, left, orders)
+    if best_order is not None:
+        # more orders than searched: again at the travel's own step, around the best
+        fine, fine_order = _pick_order(theta, sign, q, left,
+                                       _finer_orders(train, orders, best_order))
+        if fine_order is not None and fine > best:
+            best, best_order = fine, fine_order
     base = residual_holdout - n_ho @ null
     share = phase_share(train, edge, q, best_order) if best_order is not None else 0.0
     if best_order is None or share > MAX_PHASE_SHARE:

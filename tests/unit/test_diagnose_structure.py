@@ -330,3 +330,24 @@ def test_the_drift_shapes_count_only_with_a_candidates_shrink() -> None:
     assert not case.effects and not case.outside
     result = diagnose(train, holdout)
     assert result.verdict == "none", result.notes
+
+
+@pytest.mark.parametrize(("seed", "index"), [(308, 64), (309, 164)])
+def test_a_friction_level_along_a_long_travel_is_found_between_the_orders_searched(
+        seed: int, index: int) -> None:
+    # Held-out benchmark cases of a dry friction whose level changes along the travel at
+    # 1/5.6 and 1/5.4 cycles per revolution, under a current noise command that turns the
+    # shaft 420 and 382 revolutions on TRAIN. The orders searched there (at most
+    # MAX_TRAVEL_ORDERS, up to MAX_TRAVEL_ORDER) lay four steps of the travel apart, and
+    # the nearest was off by up to half a cycle over the travel: the test took nothing
+    # (p 0.48 and 1) and the verdict was `coulomb_friction`. Searched again at the
+    # travel's own step around the best, the level is found.
+    case, train, holdout = case_runs(index, seed, held_out=True, current_mean=True)
+    assert list(case.outside) == ["position_friction"]
+    result = diagnose(train, holdout)
+    assert result.verdict == f"coulomb_friction+{UNEXPLAINED}", result.message
+    assert result.position_structure_p_value is not None
+    assert result.position_structure_p_value < FAMILY_ALPHA
+    assert result.position_structure_shrink is not None
+    assert result.position_structure_shrink >= MIN_SHRINK
+
