@@ -10,13 +10,13 @@ So a verdict that names a dry friction meets a competitor, also where the gap it
 leaves is within the noise gap (:func:`stand.diagnosis.noise.within_noise`: a size that
 an eddy brake's difference from a friction level often stays within, while the paired
 test on the simulated speed, which allows for the noise, still tells them apart): the
-verdict's other effects and a drag ``T_d·tanh(ω/ω_d)`` in place of the friction, ``ω_d`` searched over
-:data:`SCALE_POINTS` speeds from :data:`LOW_SHARE` to :data:`HIGH_SHARE` of the run's
-typical speed (each fitted on TRAIN and simulated on TRAIN, the best kept; a best at
-either end is no fit: at the low end the drag is the friction's jump, at the high end
-the viscous slope; an eddy-current brake ``T·2x/(1 + x²)``, ``x = ω/ω_c``, has the
-slope and the level of ``T·tanh(ω/ω_d)`` at ``ω_d = ω_c/2``). It wins over the friction
-where
+verdict's other effects and a drag ``T_d·tanh(ω/ω_d)`` in place of the friction,
+``ω_d`` searched over :data:`SCALE_POINTS` speeds from :data:`LOW_SHARE` to
+:data:`HIGH_SHARE` of the run's typical speed (each fitted on TRAIN and simulated on
+TRAIN, the best kept; a best at either end is no fit: at the low end the drag is the
+friction's jump, at the high end the viscous slope; an eddy-current brake
+``T·2x/(1 + x²)``, ``x = ω/ω_c``, has the slope and the level of ``T·tanh(ω/ω_d)`` at
+``ω_d = ω_c/2``). It wins over the friction where
 
 - it simulates HOLDOUT significantly better than the verdict (the paired test on the
   simulated speed, as for a candidate effect,

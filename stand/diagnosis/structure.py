@@ -475,15 +475,22 @@ MAX_TRAVEL_ORDERS = 400
 
 def _travel_orders(sig: Signals) -> np.ndarray:
     """Orders (cycles per revolution) searched on TRAIN: from one cycle over its travel
-    up to :data:`MAX_TRAVEL_ORDER`, in steps of a quarter cycle over the travel."""
-    revolutions = float(np.ptp(sig.theta_f)) / (2 * np.pi)
-    if revolutions <= 0:
+    up to :data:`MAX_TRAVEL_ORDER`, in steps of a quarter cycle over the travel
+    (:func:`_order_step`)."""
+    step = _order_step(sig)
+    if step is None:
         return np.array([])
-    step = ORDER_STEP_OF_TRAVEL / revolutions
-    orders = np.arange(1.0 / revolutions, MAX_TRAVEL_ORDER, step)
+    orders = np.arange(step / ORDER_STEP_OF_TRAVEL, MAX_TRAVEL_ORDER, step)
     if orders.size > MAX_TRAVEL_ORDERS:
         orders = np.linspace(orders[0], orders[-1], MAX_TRAVEL_ORDERS)
     return orders
+
+
+def _order_step(sig: Signals) -> float | None:
+    """A quarter cycle over the travel of ``sig`` (:data:`ORDER_STEP_OF_TRAVEL`), cycles
+    per revolution; None where it does not move."""
+    revolutions = float(np.ptp(sig.theta_f)) / (2 * np.pi)
+    return ORDER_STEP_OF_TRAVEL / revolutions if revolutions > 0 else None
 
 
 def _finer_orders(sig: Signals, orders: np.ndarray, around: float) -> np.ndarray:
@@ -493,10 +500,10 @@ def _finer_orders(sig: Signals, orders: np.ndarray, around: float) -> np.ndarray
     apart (420 revolutions), a level half a spacing off the nearest order drifts half a
     cycle against its columns over the travel, and they take little of it (held-out
     seeds 308 and 309, docs/results/diagnose.md)."""
-    revolutions = float(np.ptp(sig.theta_f)) / (2 * np.pi)
-    if orders.size < 2 or revolutions <= 0:
+    step = _order_step(sig)
+    if orders.size < 2 or step is None:
         return np.array([])
-    spacing, step = orders[1] - orders[0], ORDER_STEP_OF_TRAVEL / revolutions
+    spacing = orders[1] - orders[0]
     if spacing <= step * (1 + 1e-9):
         return np.array([])
     fine = np.arange(around - spacing, around + spacing, step)
