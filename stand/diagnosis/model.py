@@ -290,13 +290,20 @@ def at_samples(per_interval: np.ndarray,
     return out
 
 
+def _sampled_current(spec: ModelSpec, sig: Signals) -> np.ndarray:
+    """The current over the period after each sample as ``spec`` reconstructs it from
+    the samples of ``sig`` alone (shifted by its ``delay``, weighted by its
+    ``input_weight``: :func:`interval_current`), A."""
+    return interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+
+
 def period_current(model: FittedModel, sig: Signals) -> np.ndarray:
     """The current over the period after each sample that drives ``model`` on ``sig``,
     A: the samples' reconstruction (``delay``, ``input_weight``), and where the model
     has them, the speed loop's kicks between samples (:mod:`.kicks`) in current units
     (their fitted torque over the current's)."""
     spec = model.spec
-    current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+    current = _sampled_current(spec, sig)
     if spec.kicks:
         gains = np.array([model.coef[name] for name in KICK_COLUMNS])
         current = current + kick_basis(sig) @ gains / model.coef["current"]
@@ -465,12 +472,12 @@ def _column(spec: ModelSpec, sig: Signals, name: str) -> np.ndarray:
     if name == "drag":
         return at_samples(drag_mean(friction_speed(sig), spec.drag_ws or 1.0))
     if name == "load_friction":
-        current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+        current = _sampled_current(spec, sig)
         return at_samples(np.abs(current) * period_mean(friction_speed(sig)))
     if name in ("cog_sin", "cog_cos"):
         return at_samples(periodic_column(spec.cogging_N or 0, sig, name == "cog_sin"))
     if name in ("rip_sin", "rip_cos"):
-        current = interval_current(shifted(sig.current, spec.delay), spec.input_weight)
+        current = _sampled_current(spec, sig)
         periodic = periodic_column(spec.ripple_N or 0, sig, name == "rip_sin")
         return at_samples(current * periodic)
     if name in LOAD_COLUMNS:
