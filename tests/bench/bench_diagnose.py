@@ -61,6 +61,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="the drives also report their current averaged over each "
                         "sample period (column current_mean_A), as the diagnosis then "
                         "takes it")
+    parser.add_argument("--until-shown", action=argparse.BooleanOptionalAction, default=True,
+                        help="draw an outside effect, and each effect of a pair, again until "
+                        "it also shows against the case's twin runs without it "
+                        "(oracle.visible_against_twin; the draw since stop 67); "
+                        "--no-until-shown: by the SNR alone, as the seeds before 316 were drawn")
     parser.add_argument("--no-timing", action="store_true", help="skip the timing case")
     parser.add_argument("--rows", help="write every case as JSON lines to this file, each "
                         "as soon as it is in")
@@ -89,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
                              outside_share=args.outside_share, first=args.first,
                              outside_set=args.outside_set, on_row=keep,
                              classes=tuple(args.classes) if args.classes else None,
-                             tell_limit=args.tell_limit, current_mean=args.current_mean)
+                             tell_limit=args.tell_limit, current_mean=args.current_mean,
+                             until_shown=args.until_shown)
         if out:
             out.close()
     wall = time.perf_counter() - start
@@ -104,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"effects drawn until their SNR on HOLDOUT >= {args.min_snr:g} (true plant, "
           f"tests.bench.diagnose.snr): {summary['redrawn_cases']} cases drawn again; median SNR "
           f"{'n/a' if summary['median_snr'] is None else format(summary['median_snr'], '.2f')}")
+    print(f"outside effects and pairs drawn until each effect shows against its twin runs: "
+          f"{summary['until_shown_cases']} of {summary['cases']} cases' draws")
     if summary["refused"]:
         print(f"cases the engine refused (counted wrong): {summary['refused']}")
     print(f"top-1 accuracy {_percent(summary['top1_accuracy'])}  "

@@ -4,10 +4,11 @@ Each case draws a motor, a drive mode and excitation, sensors, and zero, one or 
 effects of the vocabulary over wide ranges (:func:`draw_case`); an effect's parameters
 are drawn again until it shows above the sensor noise on HOLDOUT (its SNR,
 :mod:`tests.bench.diagnose.snr`, measured with the TRUE plant, at least ``min_snr``;
-``min_snr=0`` keeps every first draw); simulates a TRAIN and a
-HOLDOUT run with the stand simulator (:mod:`stand.physics`); writes both as CSV files
-(CONTRACT §1) and reads them back, so the diagnosis sees only what a user has; and
-keeps the answer key apart until the verdict is in (:func:`run_case`).
+``min_snr=0`` keeps every first draw), and with ``until_shown`` an outside effect or
+a pair's effect until it also shows against the case's twin runs without it; simulates
+a TRAIN and a HOLDOUT run with the stand simulator (:mod:`stand.physics`); writes both
+as CSV files (CONTRACT §1) and reads them back, so the diagnosis sees only what a user
+has; and keeps the answer key apart until the verdict is in (:func:`run_case`).
 :func:`summarize_cases` turns the cases into the figures of issue 5: confusion matrix,
 top-1 accuracy, false alarms on effect-free cases, median shrink of the true effect.
 """
@@ -105,6 +106,9 @@ class Case:
     omega_ref: float = 0.0
     #: Effects outside the vocabulary (:mod:`tests.bench.diagnose.outside`).
     outside: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: Whether each planted effect of a pair, or the outside effect, shows against the
+    #: case's twin runs without it (:func:`_visible_each`), where the draw measured it.
+    shown: dict[str, bool] | None = None
 
 
 #: The outside sets a benchmark can draw from (:mod:`tests.bench.diagnose.outside`).
@@ -116,7 +120,8 @@ OUTSIDE_SETS = {"tuning": OUTSIDE, "held_out": HELD_OUT, "unseen": UNSEEN,
 
 def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
               duration_s: float = RUN_DURATION_S, outside_share: float = 0.0,
-              outside_set: str = "tuning") -> Case:
+              outside_set: str = "tuning", until_shown: bool = False,
+              current_mean: bool = False) -> Case:
     """Draw case ``index`` of a benchmark seeded with ``seed`` (reproducible).
 
     Which effects a case has is drawn once. Their parameters are drawn again (up to
@@ -131,13 +136,23 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
     so the other cases stay as without it) has one effect outside the vocabulary
     instead (:mod:`tests.bench.diagnose.outside`), of a strength in ``STRENGTH_RANGE``,
     drawn again like the others until it shows above the noise; ``outside_set`` names
-    the set it comes from (a key of :data:`OUTSIDE_SETS`)."""
+    the set it comes from (a key of :data:`OUTSIDE_SETS`).
+
+    With ``until_shown`` (the benchmark's draw since stop 67), the outside effect, and
+    each effect of a pair, must also show against the case's twin runs without it
+    (:func:`_visible_each`, on runs with the period-mean current where
+    ``current_mean``): an effect that the re-identified nominal model takes up (``Kt/J``
+    an elastic load under a sine far below its resonance) leaves no gap beyond noise,
+    and ``none`` is then the right answer, not a miss. The check runs only on a draw
+    the SNR accepts and consumes no random numbers, so a case whose effects show at
+    once is the same draw either way."""
     rng = np.random.default_rng([seed, index])
     stand = _draw_stand(index, seed, rng)
     side = np.random.default_rng([seed, index, 11])
+    shows = _shows(duration_s, current_mean) if until_shown else None
     if side.random() < outside_share:
         return _draw_outside_case(stand, side, min_snr, duration_s, OUTSIDE_SETS[outside_set],
-                                  index=index, seed=seed)
+                                  index=index, seed=seed, shows=shows)
     truth = _draw_truth(rng)
     draws = 0
     for on, stream in _stands(stand, rng, index, seed):
@@ -148,9 +163,24 @@ def draw_case(index: int, seed: int, min_snr: float = MIN_EFFECT_SNR,
             if not effects or min_snr <= 0:
                 return case
             case.snr = case_snr(case, duration_s)
-            if case.snr >= min_snr:
+            if case.snr >= min_snr and (shows is None or len(effects) < 2 or shows(case)):
                 return case
     return case
+
+
+def _shows(duration_s: float, current_mean: bool) -> Callable[[Case], bool]:
+    """The draw's test that every effect of a case shows against its twin runs
+    (:func:`_visible_each`); it records the figures in ``case.shown``. A draw whose runs
+    cannot be read (an effect that holds the shaft still: "position_rad never changes")
+    is no case to diagnose and is drawn again."""
+    def shows(case: Case) -> bool:
+        with tempfile.TemporaryDirectory(prefix="diagnose-draw-") as folder:
+            try:
+                case.shown = _visible_each(case, None, Path(folder), duration_s, current_mean)
+            except StandError:
+                case.shown = {name: False for name in [*case.effects, *case.outside]}
+        return all(case.shown.values())
+    return shows
 
 
 def _stands(stand: Case, rng: np.random.Generator, index: int, seed: int
@@ -192,12 +222,13 @@ def case_class(index: int, seed: int, outside_share: float = 0.0) -> str:
 
 
 def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
-                       duration_s: float, names: dict[str, Any], *, index: int, seed: int
-                       ) -> Case:
+                       duration_s: float, names: dict[str, Any], *, index: int, seed: int,
+                       shows: Callable[[Case], bool] | None = None) -> Case:
     """``stand`` (case ``index`` of ``seed``) with one outside effect of ``names``, drawn
-    until its SNR reaches ``min_snr``; as for the vocabulary's effects, a stand on which
-    it never does (a drive's braking limit on a run that never brakes hard) is drawn
-    anew (:func:`_stands`), the effect kept."""
+    until its SNR reaches ``min_snr`` (and, with ``shows``, until it passes that test);
+    as for the vocabulary's effects, a stand on which it never does (a drive's braking
+    limit on a run that never brakes hard) is drawn anew (:func:`_stands`), the effect
+    kept."""
     name = str(rng.choice(sorted(names)))
     case, draws = stand, 0
     for on, _ in _stands(stand, rng, index, seed):
@@ -209,7 +240,7 @@ def _draw_outside_case(stand: Case, rng: np.random.Generator, min_snr: float,
                                   duration_s=duration_s)
             case = replace(on, outside={name: params}, truth=[f"outside:{name}"], draws=draws)
             case.snr = case_snr(case, duration_s)
-            if case.snr >= min_snr:
+            if case.snr >= min_snr and (shows is None or shows(case)):
                 return case
     return case
 
@@ -326,7 +357,9 @@ def case_runs(index: int, seed: int, held_out: bool = False, *,
     """Case ``index`` of the benchmark seeded ``seed`` and its TRAIN and HOLDOUT runs, as
     tests take them (``held_out``: its held-out outside effects drawn at a share of 0.3,
     as the benchmark runs it; ``outside_set``: that set's instead; else none), with the
-    drive's period-mean current where ``current_mean`` (``--current-mean``)."""
+    drive's period-mean current where ``current_mean`` (``--current-mean``). Drawn by
+    the SNR alone, as every seed before 316 was (``--no-until-shown``): a case whose
+    effects show at once is the same draw either way."""
     drawn_from = "held_out" if held_out else outside_set
     case = (draw_case(index, seed, outside_share=0.3, outside_set=drawn_from) if drawn_from
             else draw_case(index, seed))
@@ -387,12 +420,14 @@ def _simulated(case: Case, which: int, duration_s: float,
 def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
              min_snr: float = MIN_EFFECT_SNR, outside_share: float = 0.0,
              outside_set: str = "tuning", tell_limit: bool = False,
-             current_mean: bool = False) -> dict[str, Any]:
+             current_mean: bool = False, until_shown: bool = False) -> dict[str, Any]:
     """Draw, simulate, write, read back and diagnose one case blind; then score it.
     ``tell_limit``: the diagnosis is told the drive's supply and current limit, as a
     motor profile tells them (``stand diagnose --motor``); ``current_mean``: the runs
-    also hold the drive's current averaged over each period (:func:`simulate_case`)."""
-    case = draw_case(index, seed, min_snr, duration_s, outside_share, outside_set)
+    also hold the drive's current averaged over each period (:func:`simulate_case`);
+    ``until_shown``: :func:`draw_case`'s."""
+    case = draw_case(index, seed, min_snr, duration_s, outside_share, outside_set,
+                     until_shown=until_shown, current_mean=current_mean)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
         paths = [write_run(Path(folder) / f"{name}.csv",
                            simulate_case(case, k, duration_s, current_mean=current_mean))
@@ -406,7 +441,9 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         elapsed = time.perf_counter() - start
         oracle = (visibility(train, holdout, case.motor, case.effects)
                   if case.effects else None)
-        each = _visible_each(case, (train, holdout), Path(folder), duration_s, current_mean)
+        each = (case.shown if case.shown is not None
+                else _visible_each(case, (train, holdout), Path(folder), duration_s,
+                                   current_mean))
     predicted = result.verdict.split("+")
     named = [p for p in predicted if p != UNEXPLAINED] or predicted
     gaps = {e.effect: e for e in result.effects}
@@ -438,20 +475,28 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
         # how the verdict was built: each effect's test as an addition to those before it
         "steps": [{"effect": s.effect, "gap_before": s.gap_before_percent, "gap": s.gap_percent,
                    "p": s.p_value} for s in result.steps],
-        "notes": result.notes, "current_mean": current_mean,
+        "notes": result.notes, "current_mean": current_mean, "until_shown": until_shown,
     }
 
 
-def _visible_each(case: Case, runs: tuple[Run, Run], folder: Path, duration_s: float,
+def _visible_each(case: Case, runs: tuple[Run, Run] | None, folder: Path, duration_s: float,
                   current_mean: bool = False) -> dict[str, bool]:
     """Whether each planted effect of a pair, or the outside effect, shows against the
     case's twin runs without it (:func:`tests.bench.diagnose.oracle.visible_against_twin`):
     alone or first at the first step's level, beside another planted effect at the
-    second step's."""
+    second step's. ``runs``: the case's TRAIN and HOLDOUT as read back (simulated into
+    ``folder`` when ``None``)."""
     planted = [*case.effects, *case.outside]
     out: dict[str, bool] = {}
     if len(planted) < 2 and not case.outside:
         return out  # a single vocabulary effect: the oracle's "visible" judges it
+    if runs is None:
+        train, holdout = (read_run(write_run(folder / f"{name}.csv",
+                                             simulate_case(case, k, duration_s,
+                                                           current_mean=current_mean)),
+                                   "single")
+                          for k, name in enumerate(("train", "holdout")))
+        runs = (train, holdout)
     for name in planted:
         others = {k: v for k, v in case.effects.items() if k != name}
         twin = tuple(read_run(write_run(folder / f"twin_{name}_{k}.csv",
@@ -575,6 +620,8 @@ def summarize_cases(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "cases": len(rows),
         "redrawn_cases": sum(r.get("draws", 1) > 1 for r in rows),
+        # rows drawn with draw_case's until_shown (rows before it: none)
+        "until_shown_cases": sum(r.get("until_shown", False) for r in rows),
         "snr_measured_cases": len(measured),
         "median_snr": float(np.median([r["snr"] for r in measured])) if measured else None,
         "refused": sum(r["verdict"] == "error" for r in rows),
@@ -617,7 +664,7 @@ def _supply(case: Case) -> DriveSupply:
                        case.drive.current_limit_A)
 
 
-def _run_case_args(args: tuple[int, int, float, float, float, str, bool, bool]
+def _run_case_args(args: tuple[int, int, float, float, float, str, bool, bool, bool]
                    ) -> dict[str, Any]:
     return run_case(*args)
 
@@ -627,14 +674,14 @@ def run_benchmark(cases: int, seed: int, workers: int = 2, duration_s: float = R
                   first: int = 0, outside_set: str = "tuning",
                   on_row: Callable[[dict[str, Any]], None] | None = None,
                   classes: tuple[str, ...] | None = None,
-                  tell_limit: bool = False, current_mean: bool = False
-                  ) -> list[dict[str, Any]]:
+                  tell_limit: bool = False, current_mean: bool = False,
+                  until_shown: bool = False) -> list[dict[str, Any]]:
     """Run the blind cases ``first`` .. ``first + cases - 1`` with ``workers`` processes;
     with ``classes``, only those of these classes (:func:`case_class`). Rows in case
     order, each also handed to ``on_row`` as soon as it is in. ``tell_limit``,
-    ``current_mean``: :func:`run_case`'s."""
+    ``current_mean``, ``until_shown``: :func:`run_case`'s."""
     jobs = [(index, seed, duration_s, min_snr, outside_share, outside_set, tell_limit,
-             current_mean)
+             current_mean, until_shown)
             for index in range(first, first + cases)
             if classes is None or case_class(index, seed, outside_share) in classes]
     rows = []
