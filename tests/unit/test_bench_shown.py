@@ -19,7 +19,7 @@ def _draw(index: int, seed: int, until_shown: bool) -> Case:
 
 
 def test_an_elastic_load_the_nominal_model_takes_up_is_drawn_again() -> None:
-    # seed 315, case 31: an elastic load under a 1 Hz-scale sine, SNR 5.7 against the
+    # seed 315, case 31: an elastic load under a current-loop sine, SNR 5.7 against the
     # true plant, but Kt/J re-identified on TRAIN takes it up: diagnosed `none`, and
     # counted an outside miss by the draw before stop 67
     first = _draw(31, 315, until_shown=False)
@@ -32,6 +32,19 @@ def test_an_elastic_load_the_nominal_model_takes_up_is_drawn_again() -> None:
     assert case.truth == ["outside:elastic_load"]
     assert case.draws > first.draws
     assert case.shown == {"elastic_load": True}
+
+
+def test_a_pair_is_drawn_again_until_both_its_effects_show() -> None:
+    # seed 315, case 54: cogging with a backlash under a PRBS; on its first draw the
+    # cogging adds nothing that shows beside the backlash (diagnosed `backlash`)
+    first = _draw(54, 315, until_shown=False)
+    assert (first.truth, first.draws) == (["cogging", "backlash"], 1)
+    with tempfile.TemporaryDirectory() as folder:
+        assert _visible_each(first, None, Path(folder), 10.0, current_mean=True) == {
+            "cogging": False, "backlash": True}
+    case = _draw(54, 315, until_shown=True)
+    assert case.draws > first.draws
+    assert case.shown == {"cogging": True, "backlash": True}
 
 
 def test_a_case_whose_effect_shows_at_once_is_the_same_draw_either_way() -> None:
