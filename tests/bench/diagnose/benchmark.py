@@ -429,10 +429,7 @@ def run_case(index: int, seed: int, duration_s: float = RUN_DURATION_S,
     case = draw_case(index, seed, min_snr, duration_s, outside_share, outside_set,
                      until_shown=until_shown, current_mean=current_mean)
     with tempfile.TemporaryDirectory(prefix="diagnose-bench-") as folder:
-        paths = [write_run(Path(folder) / f"{name}.csv",
-                           simulate_case(case, k, duration_s, current_mean=current_mean))
-                 for k, name in enumerate(("train", "holdout"))]
-        train, holdout = (read_run(p, "single") for p in paths)
+        train, holdout = _read_back(case, Path(folder), duration_s, current_mean)
         start = time.perf_counter()
         try:
             result = diagnose(train, holdout, supply=_supply(case) if tell_limit else None)
@@ -491,21 +488,26 @@ def _visible_each(case: Case, runs: tuple[Run, Run] | None, folder: Path, durati
     if len(planted) < 2 and not case.outside:
         return out  # a single vocabulary effect: the oracle's "visible" judges it
     if runs is None:
-        train, holdout = (read_run(write_run(folder / f"{name}.csv",
-                                             simulate_case(case, k, duration_s,
-                                                           current_mean=current_mean)),
-                                   "single")
-                          for k, name in enumerate(("train", "holdout")))
-        runs = (train, holdout)
+        runs = _read_back(case, folder, duration_s, current_mean)
     for name in planted:
         others = {k: v for k, v in case.effects.items() if k != name}
-        twin = tuple(read_run(write_run(folder / f"twin_{name}_{k}.csv",
-                                        simulate_case(case, k, duration_s, others,
-                                                      current_mean)), "single")
-                     for k in (0, 1))
+        twin = _read_back(case, folder, duration_s, current_mean, others, f"twin_{name}_")
         tests = ENGINE_TESTS - 1 if len(planted) > 1 else ENGINE_TESTS
-        out[name] = visible_against_twin(runs, (twin[0], twin[1]), case.motor, others, tests)
+        out[name] = visible_against_twin(runs, twin, case.motor, others, tests)
     return out
+
+
+def _read_back(case: Case, folder: Path, duration_s: float, current_mean: bool,
+               effects: dict[str, dict[str, float]] | None = None, prefix: str = ""
+               ) -> tuple[Run, Run]:
+    """The TRAIN and HOLDOUT runs of ``case`` (``effects``, ``current_mean``:
+    :func:`simulate_case`'s) written as CSV files into ``folder`` (``prefix`` before
+    their names) and read back: what a user has."""
+    train, holdout = (read_run(write_run(folder / f"{prefix}{name}.csv",
+                                         simulate_case(case, k, duration_s, effects,
+                                                       current_mean)), "single")
+                      for k, name in enumerate(("train", "holdout")))
+    return train, holdout
 
 
 def rescore(row: dict[str, Any]) -> dict[str, Any]:
