@@ -92,11 +92,11 @@ def either_order(bench: Bench, first: str, single: Scored, beside: Scored,
 
     Greedy selection searches the second effect's hyper-parameters with the first's
     fixed where the first was found alone, and the first can have taken up part of the
-    second there: on a sine, a dry friction or a backlash lags the motion as a delay of
-    the current does, and the delay found alone is then longer than the true one, beside
-    which neither the friction nor the backlash simulates HOLDOUT better (benchmark
-    314/27: a delay of 3 samples found alone, 2 planted; beside the backlash found alone
-    the search finds 2 and the pair simulates HOLDOUT to 1.72 % instead of 2.89 %). The
+    second there: a backlash or a dry friction lags the motion behind the current as a
+    delay of the current does, and the delay found alone is then longer than the true
+    one, beside which neither simulates HOLDOUT better (benchmark 314/27, a current PRBS:
+    a delay of 3 samples found alone, 2 planted; beside the backlash found alone the
+    search finds 2 and the pair simulates HOLDOUT to 1.72 % instead of 2.89 %). The
     order is picked on TRAIN (each pair identified and simulated there), and a near tie
     keeps the greedy order: the two orders then differ in little but HOLDOUT's paired
     test (315/54, a backlash and a cogging: TRAIN 0.4392 against 0.4399 %, HOLDOUT
