@@ -104,12 +104,15 @@ def either_order(bench: Bench, first: str, single: Scored, beside: Scored,
     as any addition is, and consistent only when both effects are. ``passes``: the test
     that decides whether HOLDOUT's search is worth running
     (:meth:`~stand.diagnosis.scoring.Bench.candidate`)."""
-    if single.spec == NO_FIT or not single.consistent:
+    if not single.consistent:  # no fit alone is never consistent
         return beside
     again = bench.candidate(first, single, passes)
-    if again.spec == NO_FIT or (beside.spec != NO_FIT and bench.on_train.score(again.spec).gap
-                                > (1.0 - MIN_SHRINK) * bench.on_train.score(beside.spec).gap):
+    if again.spec == NO_FIT:
         return beside
+    if beside.spec != NO_FIT:
+        gap_again, gap_beside = bench.self_gaps(bench.train).many([again.spec, beside.spec])
+        if gap_again > (1.0 - MIN_SHRINK) * gap_beside:
+            return beside
     return again
 
 
