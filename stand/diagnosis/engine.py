@@ -301,6 +301,8 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                   if replaced is None else [])
                + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
                                     along.test.p_value, speed, drift)
+               + _near_noise_note(bool(chosen) or left, final.gap, noise_gap,
+                                  structure.test.p_value, along.test.p_value)
                + _phase_note(along.phase_share)),
         steps=steps), traces
 
@@ -342,6 +344,25 @@ def _within_noise_note(held: bool, verdict_gap: float, noise_gap: float, p_shape
             "`unexplained`, which is a gap beyond the noise (CONTRACT §3); the nominal "
             "model's own structure (a quantized motion that repeats, a speed loop's kicks "
             "between samples) shows there too"]
+
+
+def _near_noise_note(named: bool, nominal_gap: float, noise_gap: float, p_shapes: float,
+                     p_along: float) -> list[str]:
+    """What a ``none`` claims where the nominal gap is beyond the noise gap but within
+    ``UNEXPLAINED_FACTOR`` times it, with no shape of an effect in its equation error
+    (:func:`stand.diagnosis.noise.unexplained`): not that nothing is there, only that
+    these runs cannot tell it from noise, as on many runs with no effect (``named``: the
+    verdict names an effect or ``unexplained``, and then says nothing of this)."""
+    if named or not noise_gap < nominal_gap <= UNEXPLAINED_FACTOR * noise_gap:
+        return []
+    return [f"the nominal gap ({nominal_gap:.2f} %) is {nominal_gap / noise_gap:.1f} times "
+            f"what noise explains ({noise_gap:.2f} %), within the {UNEXPLAINED_FACTOR:g} "
+            "times that runs with no effect reach (the noise gap is an estimate, uncertain "
+            "by a factor of about 1.5 from run to run), and its equation error holds no "
+            f"shape an effect makes (p = {p_shapes:.2g}, along the travel p = {p_along:.2g}): "
+            "an effect that the re-identified nominal model takes up in Kt/J and D/J "
+            "cannot be told from noise on these runs; runs of another command (one that "
+            "reverses, a broadband PRBS) test it again"]
 
 
 def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,
