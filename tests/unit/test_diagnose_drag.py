@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from stand.diagnosis import diagnose, drag
+from stand.diagnosis.signals import prepare
 from stand.diagnosis.smooth_drag import drag_mean
 from stand.effects import UNEXPLAINED
+from stand.runfile import Run
 from tests.bench.diagnose.benchmark import case_runs
 from tests.unit.test_diagnose_effects import MOTOR, PLANTED, stand_runs
 
@@ -113,3 +115,29 @@ def test_a_coulomb_friction_that_simulates_better_beside_the_drag_stays() -> Non
     assert any(note.startswith(f"coulomb_friction {drag.BESIDE}") for note in result.notes), \
         result.notes
 
+
+
+def _run(position: np.ndarray, dt: float) -> Run:
+    t = np.arange(len(position)) * dt
+    return Run({"time_s": t, "current_A": np.zeros_like(t), "position_rad": position})
+
+
+def test_the_reversal_step_is_the_speeds_change_over_a_sample_where_it_reverses() -> None:
+    dt, w = 1e-3, 4 * np.pi
+    t = np.arange(4000) * dt
+    # θ = sin(w·t): the speed w·cos(w·t) changes by w²·Δt a sample where it crosses zero
+    step = drag.reversal_step(prepare(_run(np.sin(w * t), dt)))
+    assert step == pytest.approx(w * w * dt, rel=0.05)
+    assert drag.reversal_step(prepare(_run(3.0 * t + 0.1 * np.sin(w * t), dt))) == 0.0
+
+
+def test_a_drag_crossed_within_a_sample_at_reversal_is_the_frictions_jump() -> None:
+    # benchmark 318/103: a Coulomb friction under a speed PRBS, driven by the period
+    # means. A drag of ω_d 1.69 rad/s simulated HOLDOUT better than the friction (the
+    # sign smoothed between samples) and replaced it (`unexplained`), where the speed
+    # changes by 14 rad/s over the sample of each reversal: the friction is named
+    case, train, holdout = case_runs(103, 318, held_out=True, current_mean=True)
+    assert case.truth == ["coulomb_friction"] and case.mode == "speed"
+    result = diagnose(train, holdout)
+    assert result.verdict.split("+")[0] == "coulomb_friction", result.message
+    assert not any(drag.DROPPED in note for note in result.notes), result.notes
