@@ -84,7 +84,9 @@ def test_an_eddy_brake_a_coulomb_friction_fits_within_the_noise_gap_is_unexplain
     "friction verdict, and under a speed loop a Coulomb friction's zero crossings fit a "
     "steep drag (ω_d 2.12 rad/s) slightly better (1.18 against 1.25 %, p 4e-05); stop 65 "
     "gated the drag to a gap beyond the noise gap for this case, which cost 6 held-out eddy "
-    "brakes and 3 unseen drags a verdict of `unexplained`"))
+    "brakes and 3 unseen drags a verdict of `unexplained`. Since stop 69 no drag below "
+    "the run's reversal step (6.7 rad/s) replaces it, but a friction growing with the "
+    "torque carried is found beside it (μ 0.056, p 0.0004): coulomb_friction+unexplained"))
 def test_a_coulomb_friction_under_a_speed_loop_within_the_noise_gap_is_no_drag() -> None:
     # Held-out benchmark seed 311 case 158: a Coulomb friction under a speed-loop PRBS,
     # named, leaving 1.25 % against a noise gap of 2.52 %.
