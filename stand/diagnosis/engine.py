@@ -408,7 +408,8 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
     comes along. The samples' best reconstruction (:func:`_sample_driven`) drives
     instead only where it simulates TRAIN significantly better (the paired test of
     :func:`stand.diagnosis.selection.improvement`; the law's current has no sensor
-    noise).
+    noise), where the run holds its speed target also beside a dry friction level
+    (:func:`_beside_friction`).
     """
     tr, ho = (supply_limit.marked(run, prepare(run)) for run in (train, holdout))
     if abs(tr.dt_s - ho.dt_s) > 0.01 * tr.dt_s:
@@ -441,16 +442,16 @@ def _driven(train: Run, holdout: Run, horizon_s: float, spring: bool,
     # dry friction level where a speed loop kicks the current (_beside_friction):
     # picked on TRAIN, a weight can match the period means there (a run of one
     # frequency takes its error into Kt/J) and still miss them on HOLDOUT
-    with_friction = (None if change is None else
-                     _beside_friction((mean_bench, measured.spec), (bench, spec)))
+    better = improvement(measured, sampled).significant(1)
     friction_note = ""
-    if with_friction is not None and improvement(measured, sampled).significant(1):
-        m_f, s_f = with_friction
-        if not improvement(m_f, s_f).significant(1):
+    if better and change is not None:
+        beside = _beside_friction((mean_bench, measured.spec), (bench, spec))
+        if beside is not None and not improvement(*beside).significant(1):
+            better = False
             friction_note = (f"; the samples simulate it significantly better only without "
-                             f"a dry friction level: with one, {m_f.gap:.2f} % against "
-                             f"{s_f.gap:.2f} %")
-    if friction_note or not improvement(measured, sampled).significant(1):
+                             f"a dry friction level: with one, {beside[0].gap:.2f} % against "
+                             f"{beside[1].gap:.2f} %")
+    if not better:
         return mean_bench, measured.spec, means[1], [
             f"driven by the drive's current averaged over each sample period "
             f"({CURRENT_MEAN_COLUMN}; TRAIN simulated to {measured.gap:.2f} %, "
@@ -473,7 +474,9 @@ def _sample_driven(train: Run, holdout: Run, tr: Signals, ho: Signals, horizon_s
     The sampled current's reconstructions (:func:`_nominal_spec`) compete on TRAIN with
     the speed loop's current where both runs hold their target and the PI law holds on
     both (:mod:`.loop_input`): the law's current is one more reconstruction of the
-    current between samples, picked the same way. A law that holds at the samples can
+    current between samples, picked the same way, and kept where it simulates TRAIN
+    better either with the nominal model or beside a dry friction level
+    (:func:`_beside_friction`). A law that holds at the samples can
     still miss the current between them (a kick that needs more than the supply
     voltage); its current then simulates TRAIN worse and the samples' stays.
     """
@@ -537,9 +540,10 @@ def _beside_friction(measured: tuple[Bench, ModelSpec], sampled: tuple[Bench, Mo
     benchmark 306/56 (a cogging and a current offset under a current PRBS) the period
     means that the comparison beside a friction level picked there added a torque
     ripple the samples' models had not."""
+    (m_bench, m_spec), (s_bench, s_spec) = measured, sampled
     try:
-        return measured[0].on_train.score(replace(measured[1], coulomb=True)), \
-            sampled[0].on_train.score(replace(sampled[1], coulomb=True))
+        return (m_bench.on_train.score(replace(m_spec, coulomb=True)),
+                s_bench.on_train.score(replace(s_spec, coulomb=True)))
     except NotExcitedError:
         return None
 
