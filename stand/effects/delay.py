@@ -39,14 +39,6 @@ class Delay(Effect):
     units: ClassVar[dict[str, str]] = {"k": "samples"}
     # on a current of one frequency a delay is a phase lag that Kt/J and D/J absorb
     across_runs_on_one_tone: ClassVar[bool] = True
-    # a shift of whole samples is the physics it names for a whole-sample delay; a
-    # delay d between whole samples leaves, to first order in the shift, the error of
-    # |d − k| samples against the d it explains: at most 0.35 of it from d = 0.75 up
-    # (0.35 at 1.5 samples, 0.20 at 2.5). The benchmark's exact delay verdicts beyond
-    # UNEXPLAINED_FACTOR times the noise gap leave at most 0.41 (speed loops; seeds
-    # 289 and 306-319); an elastic load or a gear mesh named a delay leaves 0.56-0.95
-    # (docs/results/diagnose.md)
-    approximation_share: ClassVar[float] = 0.5
 
     k: int
 
