@@ -301,7 +301,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                   if replaced is None else [])
                + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
                                     along.test.p_value, speed, drift)
-               + _near_noise_note(bool(chosen) or left, final.gap, noise_gap,
+               + _near_noise_note(bool(chosen) or left, base.gap, noise_gap,
                                   structure.test.p_value, along.test.p_value)
                + _phase_note(along.phase_share)),
         steps=steps), traces
