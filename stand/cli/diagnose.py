@@ -61,10 +61,12 @@ def _place(where: dict[str, Any]) -> str:
 
 def summarize(result: dict[str, Any]) -> str:
     noise = result.get("noise_gap_percent")
+    replayed = result.get("replayed_noise_gap_percent")
     lines = [
         f"gap {result['gap_percent']:.2f} % of the holdout speed "
         f"(quantization floor {result['noise_floor_percent']:.2f} %"
         + (f", noise explains {noise:.2f} %" if noise is not None else "")
+        + (f", {replayed:.2f} % on replays of the run" if replayed is not None else "")
         + f"), where: {_place(result['where'])}",
         f"verdict: {result['verdict']} (gap with it {result['verdict_gap_percent']:.2f} %)",
         "effect               gap %   shrink  significant  params",

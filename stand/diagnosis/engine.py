@@ -44,15 +44,18 @@ from stand.diagnosis.model import (
     period_mean_current,
 )
 from stand.diagnosis.noise import (
+    REPLAY_FACTOR,
     UNEXPLAINED_FACTOR,
     beyond_approximation,
     beyond_noise_percent,
+    beyond_replay,
     explained_percent,
     noise_floor,
     noise_gap_percent,
     unexplained,
     within_noise,
 )
+from stand.diagnosis.noise_replay import replayed_noise_gap
 from stand.diagnosis.notes import aliases, limits
 from stand.diagnosis.report import Diagnosis, EffectScore, Traces
 from stand.diagnosis.scoring import Bench, Scored
@@ -73,6 +76,7 @@ from stand.diagnosis.where import locate
 from stand.effects import UNEXPLAINED
 from stand.effects.base import NO_FIT
 from stand.errors import InputError, NotExcitedError
+from stand.ident.speed_loop import TARGET_COLUMN
 from stand.runfile import CURRENT_MEAN_COLUMN, Run
 
 if TYPE_CHECKING:
@@ -247,12 +251,17 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
              if chosen else None)
     drift = structure.families[FAMILIES.index(DRIFT_SHAPES)] if chosen else None
     share = effects.approximation_share(chosen)
+    # with nothing named and a gap between the noise gap and the factor, the replay of
+    # HOLDOUT's noise through the nominal model measures what the noise gap estimates
+    replayed = (replayed_noise_gap(bench, base.model, sampled, _holds_target(train, holdout))
+                if not chosen and replaced is None
+                and noise_gap < base.gap <= UNEXPLAINED_FACTOR * noise_gap else None)
     rule = partial(unexplained, base.gap, final.gap, noise_gap, structure.test.p_value,
                    along.test.p_value, named=bool(chosen), along_shrink=along.test.shrink,
                    p_speed=speed.p_value if speed else 1.0,
                    speed_shrink=speed.shrink if speed else 0.0, share=share,
                    p_drift=drift.p_value if drift else 1.0,
-                   drift_shrink=drift.shrink if drift else 0.0)
+                   drift_shrink=drift.shrink if drift else 0.0, replayed=replayed)
     # the coupled load, the drag and the friction growing with the torque are effects
     # outside the vocabulary that simulate HOLDOUT better than the verdict by the paired
     # test, which allows for the noise: the verdict is `unexplained` after its effects,
@@ -293,6 +302,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         speed_structure_shrink=speed.shrink if speed else None,
         drift_structure_p_value=drift.p_value if drift else None,
         drift_structure_shrink=drift.shrink if drift else None,
+        replayed_noise_gap_percent=replayed,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions + bench.set_aside + replaced_notes
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
@@ -301,8 +311,9 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
                   if replaced is None else [])
                + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
                                     along.test.p_value, speed, drift)
+               + _replay_note(bool(chosen), base.gap, replayed)
                + _near_noise_note(bool(chosen) or left, base.gap, noise_gap,
-                                  structure.test.p_value, along.test.p_value)
+                                  structure.test.p_value, along.test.p_value, replayed)
                + _phase_note(along.phase_share)),
         steps=steps), traces
 
@@ -347,22 +358,48 @@ def _within_noise_note(held: bool, verdict_gap: float, noise_gap: float, p_shape
 
 
 def _near_noise_note(named: bool, nominal_gap: float, noise_gap: float, p_shapes: float,
-                     p_along: float) -> list[str]:
+                     p_along: float, replayed: float | None = None) -> list[str]:
     """What a ``none`` claims where the nominal gap is beyond the noise gap but within
     ``UNEXPLAINED_FACTOR`` times it, with no shape of an effect in its equation error
-    (:func:`stand.diagnosis.noise.unexplained`): not that nothing is there, only that
-    these runs cannot tell it from noise, as on many runs with no effect (``named``: the
-    verdict names an effect or ``unexplained``, and then says nothing of this)."""
+    (:func:`stand.diagnosis.noise.unexplained`), and within ``REPLAY_FACTOR`` times the
+    gap noise leaves on replays of HOLDOUT where the run is replayed (``replayed``): not
+    that nothing is there, only that these runs cannot tell it from noise, as on many
+    runs with no effect (``named``: the verdict names an effect or ``unexplained``, and
+    then says nothing of this)."""
     if named or not noise_gap < nominal_gap <= UNEXPLAINED_FACTOR * noise_gap:
         return []
+    replay = ("" if replayed is None else
+              f", {nominal_gap / replayed:.2f} times what it leaves on replays of HOLDOUT "
+              f"through the nominal model ({replayed:.2f} %; within the {REPLAY_FACTOR:g} "
+              "times that runs with no effect reach)")
     return [f"the nominal gap ({nominal_gap:.2f} %) is {nominal_gap / noise_gap:.1f} times "
             f"what noise explains ({noise_gap:.2f} %), within the {UNEXPLAINED_FACTOR:g} "
             "times that runs with no effect reach (the noise gap is an estimate, uncertain "
-            "by a factor of about 1.5 from run to run), and its equation error holds no "
-            f"shape an effect makes (p = {p_shapes:.2g}, along the travel p = {p_along:.2g}): "
-            "an effect that the re-identified nominal model takes up in Kt/J and D/J "
-            "cannot be told from noise on these runs; runs of another command (one that "
-            "reverses, a broadband PRBS) test it again"]
+            f"by a factor of about 1.5 from run to run){replay}, and its equation error "
+            f"holds no shape an effect makes (p = {p_shapes:.2g}, along the travel "
+            f"p = {p_along:.2g}): an effect that the re-identified nominal model takes up "
+            "in Kt/J and D/J cannot be told from noise on these runs; runs of another "
+            "command (one that reverses, a broadband PRBS) test it again"]
+
+
+def _replay_note(named: bool, nominal_gap: float, replayed: float | None) -> list[str]:
+    """Why a gap within ``UNEXPLAINED_FACTOR`` times the noise gap with nothing named is
+    ``unexplained`` by its size: it is beyond ``REPLAY_FACTOR`` times the gap noise
+    leaves on replays of HOLDOUT (``replayed``, :func:`stand.diagnosis.noise.beyond_replay`)."""
+    if named or not beyond_replay(nominal_gap, replayed):
+        return []
+    assert replayed is not None
+    return [f"the nominal gap ({nominal_gap:.2f} %) is {nominal_gap / replayed:.2f} times "
+            f"what noise leaves on replays of HOLDOUT ({replayed:.2f} %: the nominal model's "
+            "own motion read through the run's encoder and current noise, anchored and "
+            f"simulated as HOLDOUT is), beyond the {REPLAY_FACTOR:g} times that runs with no "
+            "effect reach: an effect the re-identified nominal model takes up in part, "
+            "which no vocabulary effect explains; residual_where locates what remains"]
+
+
+def _holds_target(train: Run, holdout: Run) -> bool:
+    """Whether a run holds a speed loop's target (column ``speed_target_rad_s``)."""
+    return any(TARGET_COLUMN in run for run in (train, holdout))
 
 
 def _structure_note(nominal_gap: float, verdict_gap: float, noise_gap: float, left: bool,

@@ -171,6 +171,12 @@ class Diagnosis(JsonResult):
         After named effects: the drift shapes' own test (a viscous drag and a dry
         friction level changing over the run), its p-value (1 below the least shrink
         that counts) and its shrink of HOLDOUT's equation error; None with nothing named.
+    replayed_noise_gap_percent : float or None
+        With nothing named and a nominal gap between the noise gap and
+        ``UNEXPLAINED_FACTOR`` times it: the gap noise leaves on replays of HOLDOUT, the
+        nominal model's own motion read through the run's encoder and current noise
+        (:mod:`stand.diagnosis.noise_replay`), %; a nominal gap above ``REPLAY_FACTOR``
+        times it is beyond noise. None elsewhere, and where the run holds a speed target.
     """
 
     gap_percent: float
@@ -196,6 +202,7 @@ class Diagnosis(JsonResult):
     speed_structure_shrink: float | None = None
     drift_structure_p_value: float | None = None
     drift_structure_shrink: float | None = None
+    replayed_noise_gap_percent: float | None = None
 
 
 @dataclass(frozen=True)
