@@ -64,7 +64,8 @@ NEAR_NOISE_SPEED_SHRINK = 0.2
 #: (:func:`stand.diagnosis.noise_replay.replayed_noise_gap`) is ``unexplained`` whatever
 #: its shape. On 268 effect-free benchmark runs under a current loop (stored rows of seeds
 #: 297-319) the nominal gap was at most 1.32 times the replayed one, 1.16 at the 99th
-#: percentile (docs/results/diagnose.md): the replay's own spread is 3 %, the rest is
+#: percentile (a first version of the replay; in the diagnosis, on the 121 it replays,
+#: at most 1.24; docs/results/diagnose.md): the replay's own spread is 3 %, the rest is
 #: what it does not replay (the identification's error on TRAIN, the current's colour).
 REPLAY_FACTOR = 1.3
 

@@ -14,9 +14,12 @@ The replay measures the same quantity on the run itself: the nominal model's own
 driven by the input it integrates over each period on HOLDOUT, read through the run's
 encoder (its count, at a random phase) and a current sensor of the noise the run's
 current has (:func:`stand.ident.noise.second_difference_sigma`), then anchored, simulated
-and compared exactly as the diagnosis compares HOLDOUT. On those 268 runs the nominal gap
-is 0.98 times the replayed one at the median, 1.16 at the 99th percentile, 1.32 at most;
-three replays differ by 3 % (docs/results/diagnose.md).
+and compared exactly as the diagnosis compares HOLDOUT. On those 268 runs (a first
+version of the replay, run beside the diagnosis) the nominal gap is 0.98 times the
+replayed one at the median, 1.16 at the 99th percentile, 1.32 at most; in the diagnosis,
+on the 121 of them whose gap lies between the noise gap and 2.5 times it (where it
+replays), 1.00, 1.22 and 1.24. Three replays differ by about 3 %
+(docs/results/diagnose.md).
 
 It replays the runs whose models the current alone drives (with a current offset at
 most): under a speed loop that holds its target, the loop's current between samples
