@@ -275,6 +275,9 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
     # a shape the rule reads beyond the noise gap, found within it (and no competitor
     # found an effect): said in a note
     held = not left and within_noise(final.gap, noise_gap) and rule(hold_within_noise=False)
+    # what the rule says without the replay: the size and shapes of what is left, which
+    # the structure note gives (a gap beyond the replays' alone has a note of its own)
+    by_shape = left and rule(replayed=None)
     names = chosen + ([UNEXPLAINED] if left else [])
     verdict = "+".join(names) if names else effects.NONE
     message = (f"gap {base.gap:.1f} % (noise explains {noise_gap:.2f} %); verdict {verdict}"
@@ -311,8 +314,9 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions + bench.set_aside + replaced_notes
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
-               + (_structure_note(base.gap, final.gap, noise_gap, left, structure.test.p_value,
-                                  along.test.p_value, speed, share, drift)
+               + (_structure_note(base.gap, final.gap, noise_gap, by_shape,
+                                  structure.test.p_value, along.test.p_value, speed, share,
+                                  drift)
                   if replaced is None else [])
                + _within_noise_note(held, final.gap, noise_gap, structure.test.p_value,
                                     along.test.p_value, speed, drift)

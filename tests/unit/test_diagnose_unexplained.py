@@ -388,3 +388,6 @@ def test_a_gap_beyond_what_noise_leaves_on_replays_of_the_run_is_unexplained(
     assert replayed > REPLAY_FACTOR
     assert any(f"is {replayed:.2f} times what noise leaves on replays of HOLDOUT" in note
                for note in result.notes), result.notes
+    # its size decides, not a shape: no note claims one
+    assert not any("holds a shape no noise makes" in note for note in result.notes), \
+        result.notes
