@@ -35,6 +35,7 @@ import numpy as np
 from stand.diagnosis.model import FittedModel, period_current
 from stand.diagnosis.scoring import Bench
 from stand.diagnosis.signals import Signals, prepare
+from stand.diagnosis.simulate import phi1
 from stand.ident.noise import second_difference_sigma
 from stand.runfile import Run
 
@@ -91,8 +92,9 @@ def _free_run(c_omega: float, drive: np.ndarray, dt_s: float, omega0: float,
     """Speed (rad/s) and position (rad) at each sample of ``ω' = c_omega·ω + drive``,
     the drive held over the period after each sample (exact over each period)."""
     x = c_omega * dt_s
-    # (e^x − 1)/c and ((e^x − 1)/c − Δt)/c, by their series near x = 0
-    gain = dt_s * (math.expm1(x) / x if abs(x) > 1e-8 else 1.0 + x / 2)
+    # (e^x − 1)/c (the simulation's exact step) and ((e^x − 1)/c − Δt)/c, by its series
+    # near x = 0
+    gain = dt_s * phi1(x)
     lift = (dt_s * dt_s * ((math.expm1(x) - x) / (x * x)) if abs(x) > 1e-4
             else dt_s * dt_s * (0.5 + x / 6))
     decay = math.exp(x)

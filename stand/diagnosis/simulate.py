@@ -162,7 +162,7 @@ def _shoot(step: _Stepper, anchor: _State, drive: np.ndarray, travel: np.ndarray
     barely responds to its start speed (a shaft held by friction), the slope of the
     linear model is used instead."""
     span = drive.shape[1] * step.sig.dt_s
-    linear = step.rows([span * _phi1(c_omega * span) for c_omega in step.c_omegas])
+    linear = step.rows([span * phi1(c_omega * span) for c_omega in step.c_omegas])
     delta = max(1e-6, 1e-3 * step.sig.top_speed)
     for _ in range(SHOOTING_STEPS):
         reach = _positions(step, anchor, drive, bend)[:, -1] - anchor.theta
@@ -274,8 +274,8 @@ class _Stepper:
         # (e^(c_ω·h) − 1)/c_ω: ~c_ω·h/2 too much, a few % at c_ω·h of 0.05-0.1, a
         # structural error of the simulation that effect candidates would absorb. While
         # a backlash load is carried the rate is c_ω/(1 + J_l/J).
-        self.h_free = self.rows([self.h * _phi1(m.c_omega * self.h) for m in models])
-        self.h_carried = self.rows([self.h * _phi1(m.c_omega * self.h / (1.0 + r))
+        self.h_free = self.rows([self.h * phi1(m.c_omega * self.h) for m in models])
+        self.h_carried = self.rows([self.h * phi1(m.c_omega * self.h / (1.0 + r))
                                     for m, r in zip(models, ratios, strict=True)])
 
     def rows(self, values: list[float]) -> np.ndarray | float:
@@ -368,7 +368,7 @@ class _Stepper:
             st.theta_l = np.where(hit, st.theta - np.sign(twist) * gap, st.theta_l)
 
 
-def _phi1(z: float) -> float:
+def phi1(z: float) -> float:
     """``(e^z − 1)/z``, 1 at ``z = 0``: what a rate ``z`` per unit time makes of a unit
     time step driven by a held input (the exact step of a linear first-order system)."""
     return 1.0 + 0.5 * z if abs(z) < 1e-9 else math.expm1(z) / z
