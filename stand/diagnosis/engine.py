@@ -44,8 +44,8 @@ from stand.diagnosis.model import (
     period_mean_current,
 )
 from stand.diagnosis.noise import (
-    REPLAY_FACTOR,
     UNEXPLAINED_FACTOR,
+    Replayed,
     beyond_approximation,
     beyond_noise_percent,
     beyond_replay,
@@ -310,7 +310,7 @@ def diagnose_with_traces(train: Run, holdout: Run, kt: float | None = None,
         speed_structure_shrink=speed.shrink if speed else None,
         drift_structure_p_value=drift.p_value if drift else None,
         drift_structure_shrink=drift.shrink if drift else None,
-        replayed_noise_gap_percent=replayed,
+        replayed_noise_gap_percent=None if replayed is None else replayed.gap_percent,
         notes=(input_notes + limits(tr, bench.tone_hz) + aliases(bench.aliased)
                + bench.revisions + bench.set_aside + replaced_notes
                + _approximation_note(base.gap, final.gap, noise_gap, left, share)
@@ -368,19 +368,20 @@ def _within_noise_note(held: bool, verdict_gap: float, noise_gap: float, p_shape
 
 
 def _near_noise_note(named: bool, nominal_gap: float, noise_gap: float, p_shapes: float,
-                     p_along: float, replayed: float | None = None) -> list[str]:
+                     p_along: float, replayed: Replayed | None = None) -> list[str]:
     """What a ``none`` claims where the nominal gap is beyond the noise gap but within
     ``UNEXPLAINED_FACTOR`` times it, with no shape of an effect in its equation error
-    (:func:`stand.diagnosis.noise.unexplained`), and within ``REPLAY_FACTOR`` times the
-    gap noise leaves on replays of HOLDOUT where the run is replayed (``replayed``): not
+    (:func:`stand.diagnosis.noise.unexplained`), and within ``replayed``'s factor times
+    the gap noise leaves on replays of HOLDOUT where the run is replayed: not
     that nothing is there, only that these runs cannot tell it from noise, as on many
     runs with no effect (``named``: the verdict names an effect or ``unexplained``, and
     then says nothing of this)."""
     if named or not noise_gap < nominal_gap <= UNEXPLAINED_FACTOR * noise_gap:
         return []
     replay = ("" if replayed is None else
-              f", {nominal_gap / replayed:.2f} times what it leaves on replays of HOLDOUT "
-              f"through the nominal model ({replayed:.2f} %; within the {REPLAY_FACTOR:g} "
+              f", {nominal_gap / replayed.gap_percent:.2f} times what it leaves on replays "
+              f"of HOLDOUT through the nominal model ({replayed.gap_percent:.2f} %; within "
+              f"the {replayed.factor:g} "
               "times that runs with no effect reach)")
     return [f"the nominal gap ({nominal_gap:.2f} %) is {nominal_gap / noise_gap:.1f} times "
             f"what noise explains ({noise_gap:.2f} %), within the {UNEXPLAINED_FACTOR:g} "
@@ -392,26 +393,27 @@ def _near_noise_note(named: bool, nominal_gap: float, noise_gap: float, p_shapes
             "command (one that reverses, a broadband PRBS) test it again"]
 
 
-def _replay_note(named: bool, nominal_gap: float, replayed: float | None) -> list[str]:
+def _replay_note(named: bool, nominal_gap: float, replayed: Replayed | None) -> list[str]:
     """Why a gap within ``UNEXPLAINED_FACTOR`` times the noise gap with nothing named is
-    ``unexplained`` by its size: it is beyond ``REPLAY_FACTOR`` times the gap noise
-    leaves on replays of HOLDOUT (``replayed``, :func:`stand.diagnosis.noise.beyond_replay`)."""
+    ``unexplained`` by its size: it is beyond ``replayed``'s factor times the gap noise
+    leaves on replays of HOLDOUT (:func:`stand.diagnosis.noise.beyond_replay`)."""
     if named or not beyond_replay(nominal_gap, replayed):
         return []
     assert replayed is not None
-    return [f"the nominal gap ({nominal_gap:.2f} %) is {nominal_gap / replayed:.2f} times "
-            f"what noise leaves on replays of HOLDOUT ({replayed:.2f} %: the nominal model's "
+    return [f"the nominal gap ({nominal_gap:.2f} %) is "
+            f"{nominal_gap / replayed.gap_percent:.2f} times what noise leaves on replays "
+            f"of HOLDOUT ({replayed.gap_percent:.2f} %: the nominal model's "
             "own motion read through the run's encoder and current noise, anchored and "
-            f"simulated as HOLDOUT is), beyond the {REPLAY_FACTOR:g} times that runs with no "
-            "effect reach: an effect the re-identified nominal model takes up in part, "
+            f"simulated as HOLDOUT is), beyond the {replayed.factor:g} times that runs with "
+            "no effect reach: an effect the re-identified nominal model takes up in part, "
             "which no vocabulary effect explains; residual_where locates what remains"]
 
 
 def second_look(base: Scored, singles: dict[str, Scored],
-                replayed: float | None) -> SelectionStep | None:
+                replayed: Replayed | None) -> SelectionStep | None:
     """The effect named where nothing passed the first step's test but the nominal gap
-    is beyond ``REPLAY_FACTOR`` times the gap noise leaves on replays of HOLDOUT
-    (``replayed``, :func:`stand.diagnosis.noise.beyond_replay`): among the candidates
+    is beyond ``replayed``'s factor times the gap noise leaves on replays of HOLDOUT
+    (:func:`stand.diagnosis.noise.beyond_replay`): among the candidates
     ``singles`` that the same search on HOLDOUT finds again and that take the gap back
     within that, the one that simulates HOLDOUT best, if its paired test passes at
     ``FAMILY_ALPHA`` shared among them (Bonferroni); else None.
@@ -424,7 +426,8 @@ def second_look(base: Scored, singles: dict[str, Scored],
         return None
     assert replayed is not None
     fits = {name: s for name, s in singles.items()
-            if s.spec != NO_FIT and s.consistent and s.gap <= REPLAY_FACTOR * replayed}
+            if s.spec != NO_FIT and s.consistent
+            and s.gap <= replayed.factor * replayed.gap_percent}
     if not fits:
         return None
     name = min(fits, key=lambda n: fits[n].gap)
@@ -436,16 +439,17 @@ def second_look(base: Scored, singles: dict[str, Scored],
                          p_value=min(1.0, test.p_value * len(fits)))
 
 
-def _second_look_note(second: SelectionStep | None, replayed: float | None) -> list[str]:
+def _second_look_note(second: SelectionStep | None, replayed: Replayed | None) -> list[str]:
     """Why an effect that did not pass the first step's test is in the verdict
     (:func:`second_look`)."""
     if second is None or replayed is None:
         return []
     return [f"{second.effect} is named at a second look: no effect passed the test against "
             f"the nominal model shared among the whole vocabulary, but the nominal gap "
-            f"({second.gap_before_percent:.2f} %) is {second.gap_before_percent / replayed:.2f} "
-            f"times what noise leaves on replays of HOLDOUT ({replayed:.2f} %), beyond the "
-            f"{REPLAY_FACTOR:g} times that runs with no effect reach, and {second.effect} "
+            f"({second.gap_before_percent:.2f} %) is "
+            f"{second.gap_before_percent / replayed.gap_percent:.2f} times what noise leaves "
+            f"on replays of HOLDOUT ({replayed.gap_percent:.2f} %), beyond the "
+            f"{replayed.factor:g} times that runs with no effect reach, and {second.effect} "
             f"takes it back to {second.gap_percent:.2f} % (p = {second.p_value:.2g}, shared "
             "among the effects that take it within that)"]
 

@@ -176,7 +176,8 @@ class Diagnosis(JsonResult):
         ``UNEXPLAINED_FACTOR`` times it: the gap noise leaves on replays of HOLDOUT, the
         nominal model's own motion read through the run's encoder and current noise
         (:mod:`stand.diagnosis.noise_replay`), %; a nominal gap above ``REPLAY_FACTOR``
-        times it is beyond noise. None elsewhere, and where the run holds a speed target.
+        times it (``SPEED_LOOP_REPLAY_FACTOR`` under a speed loop) is beyond noise. None
+        elsewhere, and where the run holds a speed target that is not one tone.
     """
 
     gap_percent: float
