@@ -19,6 +19,7 @@ from stand.diagnosis.noise import (
     APPROXIMATION_SHARE,
     NEAR_NOISE_SPEED_SHRINK,
     REPLAY_FACTOR,
+    SPEED_LOOP_REPLAY_FACTOR,
     UNEXPLAINED_FACTOR,
     unexplained,
 )
@@ -365,15 +366,18 @@ def test_a_none_beyond_the_noise_gap_says_what_it_does_not_rule_out() -> None:
                and "cannot be told from noise" in note for note in result.notes), result.notes
 
 
-@pytest.mark.parametrize(("seed", "index", "outside"), [
+@pytest.mark.parametrize(("seed", "index", "outside", "factor"), [
     # a friction along the travel under a current sine: 2.4 times the noise gap, 2.7
     # times the replays'
-    (316, 144, "position_friction"),
+    (316, 144, "position_friction", REPLAY_FACTOR),
     # a load on an elastic shaft under a current sine: 2.1 and 1.5 times
-    (318, 102, "elastic_load"),
+    (318, 102, "elastic_load", REPLAY_FACTOR),
+    # one under a speed sine (fresh seed 321): 2.3 and 1.66 times, not replayed before
+    # stop 71
+    (321, 82, "elastic_load", SPEED_LOOP_REPLAY_FACTOR),
 ])
 def test_a_gap_beyond_what_noise_leaves_on_replays_of_the_run_is_unexplained(
-        seed: int, index: int, outside: str) -> None:
+        seed: int, index: int, outside: str, factor: float) -> None:
     # held-out benchmark cases the re-identified nominal model takes up to within
     # UNEXPLAINED_FACTOR times the noise gap with no shape left (both `none` before the
     # replay): the gap noise leaves on replays of HOLDOUT is sharper than that estimate
@@ -385,9 +389,10 @@ def test_a_gap_beyond_what_noise_leaves_on_replays_of_the_run_is_unexplained(
     assert result.replayed_noise_gap_percent is not None
     assert result.gap_percent <= UNEXPLAINED_FACTOR * result.noise_gap_percent
     replayed = result.gap_percent / result.replayed_noise_gap_percent
-    assert replayed > REPLAY_FACTOR
+    assert replayed > factor >= REPLAY_FACTOR
     assert any(f"is {replayed:.2f} times what noise leaves on replays of HOLDOUT" in note
-               for note in result.notes), result.notes
+               and f"beyond the {factor:g} times" in note for note in result.notes), \
+        result.notes
     # its size decides, not a shape: no note claims one
     assert not any("holds a shape no noise makes" in note for note in result.notes), \
         result.notes
