@@ -88,7 +88,7 @@ class Replayed:
     :data:`SPEED_LOOP_REPLAY_FACTOR` under a speed loop)."""
 
     gap_percent: float
-    factor: float = REPLAY_FACTOR
+    factor: float
 
 
 def noise_floor(sig: Signals, scale: float) -> float:
